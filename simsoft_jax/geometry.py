@@ -1,0 +1,119 @@
+"""Reference frames of rod centrelines (plain NumPy; run once when a Model is built).
+
+Every function returns nodal frames ``(R, p)`` with shapes ``(n+1, 3, 3)`` and
+``(n+1, 3)``, in the rod's base frame (node 0 at the origin with identity rotation), for
+``n`` elements evenly spaced in arc length. Local x is the centreline tangent.
+
+* straight, arc and helix are curves of constant strain ``f0`` and are placed exactly:
+  ``H(s) = exp(s f0)`` (seed eq. 3 with constant f, spec S25, S32), so helical elements
+  represent them without discretization error.
+  - arc of radius ``r``: ``f0 = [1, 0, 0, 0, 0, 1/r]`` (bends toward local +y);
+  - helix of radius ``a`` and pitch ``c`` (rise per turn), ``b = c / 2 pi``: curvature
+    ``a/(a^2+b^2)`` about local z and torsion ``b/(a^2+b^2)`` about local x; the rod
+    starts along local x, curving toward local +y; the helix axis is the direction
+    ``(torsion, 0, curvature)`` of the base frame.
+* polyline: nodes evenly spaced in arc length along the points; tangents by central
+  differences of the nodes; the section axes follow by parallel transport (rotation-
+  minimizing frame) from the base frame.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def _skew(w):
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
+def _exp_se3_np(xi):
+    """NumPy SE(3) exponential by scaling and squaring of a Taylor series (reference use)."""
+    X = np.zeros((4, 4))
+    X[:3, :3] = _skew(xi[3:])
+    X[:3, 3] = xi[:3]
+    norm = max(np.abs(X).sum(axis=0).max(), 1e-300)
+    squarings = max(0, int(np.ceil(np.log2(norm))) + 1)
+    Y = X / 2.0**squarings
+    E, term = np.eye(4), np.eye(4)
+    for k in range(1, 25):
+        term = term @ Y / k
+        E = E + term
+    for _ in range(squarings):
+        E = E @ E
+    return E
+
+
+def constant_strain_frames(strain, length, elements):
+    """Frames ``exp(s_i f0)`` at ``s_i = i L / n`` (spec S25 with constant f)."""
+    s = np.linspace(0.0, length, elements + 1)
+    H = np.array([_exp_se3_np(si * np.asarray(strain, float)) for si in s])
+    return H[:, :3, :3], H[:, :3, 3]
+
+
+def arc_strain(radius):
+    """Reference strain ``f0`` (6,) of a circular arc bending toward local +y."""
+    return np.array([1.0, 0.0, 0.0, 0.0, 0.0, 1.0 / radius])
+
+
+def helix_strain(radius, pitch):
+    """Reference strain ``f0`` (6,) of a circular helix (radius, rise per turn), unit speed."""
+    b = pitch / (2.0 * np.pi)
+    denom = radius**2 + b**2
+    return np.array([1.0, 0.0, 0.0, b / denom, 0.0, radius / denom])
+
+
+def resample_polyline(points, count):
+    """``count`` points evenly spaced in arc length along a polyline ``points`` (P,3)."""
+    points = np.asarray(points, float)
+    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    targets = np.linspace(0.0, cum[-1], count)
+    return np.stack([np.interp(targets, cum, points[:, k]) for k in range(3)], axis=1)
+
+
+def _rotation_between(a, b):
+    """Smallest rotation taking unit vector ``a`` to unit vector ``b`` (3,3)."""
+    v = np.cross(a, b)
+    c = float(np.dot(a, b))
+    if c < -1.0 + 1e-12:  # opposite: turn by pi about any axis normal to a
+        axis = np.cross(a, [1.0, 0.0, 0.0])
+        if np.linalg.norm(axis) < 1e-6:
+            axis = np.cross(a, [0.0, 1.0, 0.0])
+        axis /= np.linalg.norm(axis)
+        return 2.0 * np.outer(axis, axis) - np.eye(3)
+    V = _skew(v)
+    return np.eye(3) + V + V @ V / (1.0 + c)
+
+
+def polyline_frames(points, elements, start_rotation=None):
+    """Frames of ``elements + 1`` nodes on a polyline (rotation-minimizing, see module doc).
+
+    ``start_rotation`` (3,3) is the frame whose y, z axes are transported (default I).
+    Positions are returned as given (no shift to the origin).
+    """
+    nodes = resample_polyline(points, elements + 1)
+    tangents = np.gradient(nodes, axis=0)
+    tangents /= np.linalg.norm(tangents, axis=1, keepdims=True)
+    R = np.empty((len(nodes), 3, 3))
+    current = np.eye(3) if start_rotation is None else np.asarray(start_rotation, float)
+    previous_tangent = current[:, 0]
+    for i, t in enumerate(tangents):
+        current = _rotation_between(previous_tangent, t) @ current
+        R[i] = current
+        previous_tangent = t
+    return R, nodes
+
+
+def reference_frames(geometry, elements):
+    """Stress-free nodal frames of a :class:`~simsoft_jax.scene.GeometrySpec` in the base frame."""
+    if geometry.kind == "straight":
+        return constant_strain_frames([1.0, 0, 0, 0, 0, 0], geometry.length, elements)
+    if geometry.kind == "arc":
+        length = geometry.radius * np.deg2rad(geometry.angle_deg)
+        return constant_strain_frames(arc_strain(geometry.radius), length, elements)
+    if geometry.kind == "helix":
+        return constant_strain_frames(helix_strain(geometry.radius, geometry.pitch),
+                                      geometry.arc_length, elements)
+    if geometry.kind == "polyline":
+        R, p = polyline_frames(geometry.points, elements)
+        return R, p - p[0]
+    raise ValueError(f"geometry.kind: unknown kind {geometry.kind!r}")

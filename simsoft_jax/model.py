@@ -1,0 +1,219 @@
+"""Scene -> Model: nodal frames, element constants, constraint masks and load tables.
+
+A :class:`Model` is a JAX pytree. Its array fields (reference twists, stiffness, loads,
+initial frames...) are traced leaves, so changing their values never recompiles a solver;
+its :class:`Structure` (node and element counts, rods, constrained dofs, which load kinds
+exist) is static metadata: solvers are compiled once per structure, and terms a scene does
+not use (gravity, follower loads, distributed loads) are not traced at all.
+
+Node numbering: the nodes of all rods are concatenated in scene order; element ``e``
+joins nodes ``element_nodes[e]`` and ``element_nodes[e] + 1`` (rods are chains), so every
+tangent matrix of a scene is block-tridiagonal with 6x6 blocks.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import geometry as geom
+from . import lie
+from .sections import inertia_diagonal, stiffness_diagonal, viscosity_diagonal
+
+
+class RodInfo(NamedTuple):
+    """Where a rod's nodes and elements sit in the model arrays."""
+    name: str
+    first_node: int
+    nodes: int
+    first_element: int
+    elements: int
+
+
+@dataclasses.dataclass(frozen=True)
+class Structure:
+    """Static (hashable) description of a Model: changing it recompiles the solvers."""
+    n_nodes: int
+    element_nodes: tuple          # node A of each element (node B = A + 1)
+    rods: tuple                   # RodInfo per rod
+    free: tuple                   # n_nodes*6 bools: True where the dof is free
+    has_nodal_dead: bool = False
+    has_nodal_follower: bool = False
+    has_distributed_world: bool = False
+    has_distributed_local: bool = False
+    has_gravity: bool = False
+
+    @property
+    def n_elements(self) -> int:
+        return len(self.element_nodes)
+
+    def free_mask(self):
+        """Free-dof mask (n_nodes, 6) as a float64 array (1 free, 0 held)."""
+        return jnp.asarray(np.array(self.free, float).reshape(self.n_nodes, 6))
+
+    def rod(self, name: str) -> RodInfo:
+        for info in self.rods:
+            if info.name == name:
+                return info
+        raise ValueError(f"rod: unknown rod {name!r} (known: {[r.name for r in self.rods]})")
+
+
+@dataclasses.dataclass(frozen=True)
+class Model:
+    """Arrays of a discretized scene (SI units). Shapes: N nodes, E elements.
+
+    R0 (N,3,3), p0 (N,3): configuration the solvers start from (columns of R0 are the
+    local axes in world coordinates). d0 (E,6): stress-free relative twists (spec S34).
+    length (E,): reference element lengths ``|d0_U|`` (S35). stiffness, inertia,
+    viscosity (E,6): sectional diagonals ``K``, ``M``, ``Upsilon`` (S28, S29).
+    nodal_dead (N,6): world-frame force and moment per node (dead loads).
+    nodal_follower (N,6): local-frame force and moment per node (follower loads).
+    distributed_world / distributed_local (E,3): force per unit length on each element,
+    fixed in space / turning with the section. gravity (3,): m/s^2.
+    char_length: length scale (m) that makes moments comparable with forces in norms.
+    """
+    structure: Structure
+    R0: jax.Array
+    p0: jax.Array
+    d0: jax.Array
+    length: jax.Array
+    stiffness: jax.Array
+    inertia: jax.Array
+    viscosity: jax.Array
+    nodal_dead: jax.Array
+    nodal_follower: jax.Array
+    distributed_world: jax.Array
+    distributed_local: jax.Array
+    gravity: jax.Array
+    char_length: jax.Array
+
+    def replace(self, **changes) -> "Model":
+        """A copy with some arrays replaced (same structure: no recompilation)."""
+        return dataclasses.replace(self, **changes)
+
+
+jax.tree_util.register_dataclass(
+    Model,
+    data_fields=[f.name for f in dataclasses.fields(Model) if f.name != "structure"],
+    meta_fields=["structure"],
+)
+
+
+def _rod_constants(rod):
+    """Stiffness, inertia and viscosity diagonals (6,) of a RodSpec."""
+    K = rod.stiffness if rod.stiffness is not None else stiffness_diagonal(
+        rod.section, rod.material, rod.shear_coefficients)
+    M = rod.inertia if rod.inertia is not None else inertia_diagonal(rod.section, rod.material)
+    V = (viscosity_diagonal(rod.section, rod.material) if rod.section is not None
+         else np.zeros(6))
+    return np.asarray(K, float), np.asarray(M, float), np.asarray(V, float)
+
+
+def _world_frames(rod):
+    """Stress-free frames of a rod in world coordinates: (n+1,3,3), (n+1,3)."""
+    R, p = geom.reference_frames(rod.geometry, rod.elements)
+    Rb, pb = np.asarray(rod.base_rotation, float), np.asarray(rod.base_position, float)
+    return np.einsum("ij,njk->nik", Rb, R), pb + p @ Rb.T
+
+
+def _initial_frames(rod, R_ref, p_ref):
+    """Start configuration: the stress-free shape, or ``initial.points`` (base frame)."""
+    if rod.initial_points is None:
+        return R_ref, p_ref
+    Rb, pb = np.asarray(rod.base_rotation, float), np.asarray(rod.base_position, float)
+    R, p = geom.polyline_frames(rod.initial_points, rod.elements,
+                                start_rotation=Rb.T @ R_ref[0])
+    return np.einsum("ij,njk->nik", Rb, R), pb + p @ Rb.T
+
+
+def _reference_twists(R, p):
+    """``d0_e = log(H_e^-1 H_e+1)`` for consecutive frames (spec S34), (n,6)."""
+    R, p = jnp.asarray(R), jnp.asarray(p)
+    return np.asarray(jax.vmap(lambda RA, pA, RB, pB: lie.log_se3(
+        lie.relative_pose(RA, pA, RB, pB)))(R[:-1], p[:-1], R[1:], p[1:]))
+
+
+def _check_held(scene):
+    """A static scene needs every rod held against rigid motion (clamp/drive or 2 pins)."""
+    for i, rod in enumerate(scene.rods):
+        kinds = [c.kind for c in scene.constraints if c.rod == rod.name]
+        if not ({"clamp", "drive"} & set(kinds)) and kinds.count("pin") < 2:
+            raise ValueError(
+                f"constraints: rod {rod.name!r} (rods[{i}]) is free to move as a rigid body; "
+                "a static solve needs a clamp, a drive or two pins on it")
+
+
+def build_model(scene) -> Model:
+    """Discretize a validated :class:`~simsoft_jax.scene.Scene` into a :class:`Model`."""
+    if scene.solver.kind == "static":
+        _check_held(scene)
+    rods, elem_nodes = [], []
+    R0, p0, d0, K, M, V = [], [], [], [], [], []
+    node_offset = element_offset = 0
+    for rod in scene.rods:
+        R_ref, p_ref = _world_frames(rod)
+        R_init, p_init = _initial_frames(rod, R_ref, p_ref)
+        d0.append(_reference_twists(R_ref, p_ref))
+        Kr, Mr, Vr = _rod_constants(rod)
+        K.append(np.tile(Kr, (rod.elements, 1)))
+        M.append(np.tile(Mr, (rod.elements, 1)))
+        V.append(np.tile(Vr, (rod.elements, 1)))
+        R0.append(R_init)
+        p0.append(p_init)
+        rods.append(RodInfo(rod.name, node_offset, rod.elements + 1, element_offset,
+                            rod.elements))
+        elem_nodes.extend(range(node_offset, node_offset + rod.elements))
+        node_offset += rod.elements + 1
+        element_offset += rod.elements
+    n_nodes, n_elements = node_offset, element_offset
+    by_name = {r.name: r for r in rods}
+
+    free = np.ones((n_nodes, 6), bool)
+    for c in scene.constraints:
+        node = by_name[c.rod].first_node + c.node
+        free[node, :3] = False
+        if c.kind in ("clamp", "drive"):
+            free[node, 3:] = False
+
+    nodal_dead = np.zeros((n_nodes, 6))
+    nodal_follower = np.zeros((n_nodes, 6))
+    dist_world = np.zeros((n_elements, 3))
+    dist_local = np.zeros((n_elements, 3))
+    for load in scene.loads:
+        info = by_name[load.rod]
+        if load.kind == "distributed_force":
+            target = dist_world if load.frame == "world" else dist_local
+            target[info.first_element:info.first_element + info.elements] += load.vector
+            continue
+        target = nodal_dead if load.frame == "world" else nodal_follower
+        cols = slice(0, 3) if load.kind == "force" else slice(3, 6)
+        target[info.first_node + load.node, cols] += load.vector
+
+    d0 = np.concatenate(d0)
+    length = np.linalg.norm(d0[:, :3], axis=1)
+    gravity = np.zeros(3) if scene.gravity is None else np.asarray(scene.gravity, float)
+    loads = [ld for ld in scene.loads]
+    structure = Structure(
+        n_nodes=n_nodes, element_nodes=tuple(elem_nodes), rods=tuple(rods),
+        free=tuple(free.ravel().tolist()),
+        has_nodal_dead=any(ld.kind != "distributed_force" and ld.frame == "world" for ld in loads),
+        has_nodal_follower=any(ld.kind != "distributed_force" and ld.frame == "local"
+                               for ld in loads),
+        has_distributed_world=any(ld.kind == "distributed_force" and ld.frame == "world"
+                                  for ld in loads),
+        has_distributed_local=any(ld.kind == "distributed_force" and ld.frame == "local"
+                                  for ld in loads),
+        has_gravity=scene.gravity is not None,
+    )
+    f64 = lambda a: jnp.asarray(a, jnp.float64)  # noqa: E731
+    return Model(
+        structure=structure, R0=f64(np.concatenate(R0)), p0=f64(np.concatenate(p0)),
+        d0=f64(d0), length=f64(length), stiffness=f64(np.concatenate(K)),
+        inertia=f64(np.concatenate(M)), viscosity=f64(np.concatenate(V)),
+        nodal_dead=f64(nodal_dead), nodal_follower=f64(nodal_follower),
+        distributed_world=f64(dist_world), distributed_local=f64(dist_local),
+        gravity=f64(gravity), char_length=f64(length.mean()),
+    )

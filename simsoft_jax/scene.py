@@ -1,0 +1,599 @@
+"""Scene schema: parse, validate, load and save scene files (TOML / JSON / dict).
+
+Plain Python + NumPy (this module never imports JAX): every bad input is rejected here
+with ONE ``ValueError`` whose message starts with the offending key path, e.g.
+``rods[0].section.width: must be > 0, got -1``.  The file contract is
+``shared/spec/scene-format.md``.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import json
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ._validate import (SpecBase, check_keys, choice, fail, index, integer, join, matrix,
+                        number, plain, positive, prefixed, read_table, readonly, require,
+                        rodrigues, rotation_vector, string, table, toml_document, vector)
+from .materials import BUILTIN_MATERIALS, Material, get_material
+from .sections import (Section, circle, custom_inertia, custom_stiffness, rectangle,
+                       semicircle, tube)
+
+__all__ = ["SolverSettings", "GeometrySpec", "RodSpec", "ConstraintSpec", "ProfileSpec",
+           "LoadSpec", "InitialVelocitySpec", "Scene", "load_scene", "save_scene"]
+
+
+# ----------------------------------------------------------------------------- data model
+
+@dataclass(frozen=True, eq=False)
+class SolverSettings(SpecBase):
+    kind: str                         # "static" | "dynamic"
+    tolerance: float = 1e-10
+    max_iterations: int = 50
+    load_steps: int = 10
+    t_end: float | None = None
+    dt: float | None = None
+    rho_inf: float = 0.9
+    save_every: int = 1
+    inertia: str = "consistent"       # "consistent" | "lumped"
+
+
+@dataclass(frozen=True, eq=False)
+class GeometrySpec(SpecBase):
+    kind: str                         # "straight" | "arc" | "helix" | "polyline"
+    length: float | None = None
+    radius: float | None = None
+    angle_deg: float | None = None
+    pitch: float | None = None
+    turns: float | None = None
+    points: np.ndarray | None = None  # (P, 3), polyline only
+
+    @property
+    def arc_length(self) -> float:
+        if self.kind == "straight":
+            return float(self.length)
+        if self.kind == "arc":
+            return float(self.radius * math.radians(self.angle_deg))
+        if self.kind == "helix":
+            return float(self.turns * math.hypot(2.0 * math.pi * self.radius, self.pitch))
+        return float(np.linalg.norm(np.diff(self.points, axis=0), axis=1).sum())
+
+
+@dataclass(frozen=True, eq=False)
+class RodSpec(SpecBase):
+    name: str
+    material: Material | None         # None only when there is no section (both overrides)
+    section: Section | None
+    shear_coefficients: tuple[float, float] | None
+    stiffness: np.ndarray | None      # (6,) EA, GAy, GAz, GJ, EIy, EIz override
+    inertia: np.ndarray | None        # (6,) rhoA x3, rhoJ, rhoIy, rhoIz override
+    elements: int
+    geometry: GeometrySpec
+    base_position: np.ndarray         # (3,)
+    base_rotation: np.ndarray         # (3, 3), columns = local axes of node 0 in world
+    initial_points: np.ndarray | None = None  # (P, 3)
+
+    @property
+    def nodes(self) -> int:
+        return self.elements + 1
+
+
+@dataclass(frozen=True, eq=False)
+class ConstraintSpec(SpecBase):
+    kind: str                         # "clamp" | "pin" | "drive"
+    rod: str
+    node: int                         # non-negative
+    times: np.ndarray | None = None          # (S,)   drive only
+    displacement: np.ndarray | None = None   # (S, 3) drive only
+    rotation: np.ndarray | None = None       # (S, 3) rotation vectors, drive only
+    slides_along: np.ndarray | None = None   # (3,) unit vector, drive only
+
+
+@dataclass(frozen=True, eq=False)
+class ProfileSpec(SpecBase):
+    kind: str                         # "constant" | "ramp" | "smoothstep" | "linear" | "table"
+    t0: float | None = None
+    t1: float | None = None
+    rate: float | None = None
+    t: np.ndarray | None = None
+    scale: np.ndarray | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class LoadSpec(SpecBase):
+    kind: str                         # "force" | "moment" | "distributed_force"
+    rod: str
+    node: int | None                  # None for distributed_force
+    vector: np.ndarray                # (3,)
+    frame: str                        # "world" (dead) | "local" (follower)
+    profile: ProfileSpec
+
+
+@dataclass(frozen=True, eq=False)
+class InitialVelocitySpec(SpecBase):
+    rod: str
+    linear: np.ndarray                # (3,)
+    angular: np.ndarray               # (3,)
+
+
+@dataclass(frozen=True, eq=False)
+class Scene(SpecBase):
+    name: str | None
+    solver: SolverSettings
+    gravity: np.ndarray | None
+    rods: tuple[RodSpec, ...]
+    constraints: tuple[ConstraintSpec, ...]
+    loads: tuple[LoadSpec, ...]
+    initial_velocity: tuple[InitialVelocitySpec, ...]
+    source: str | None = None
+    raw: dict = dataclasses.field(default_factory=dict)
+
+    @classmethod
+    def from_dict(cls, d: dict, base_dir: str | Path | None = None) -> "Scene":
+        """Validate a scene dictionary; ``base_dir`` resolves table profile files."""
+        return _parse_scene(d, Path(base_dir) if base_dir is not None else Path.cwd())
+
+    def to_dict(self) -> dict:
+        """The validated input (profile files inlined); ``from_dict`` gives it back."""
+        return copy.deepcopy(self.raw)
+
+    def rod(self, name: str) -> RodSpec:
+        for rod in self.rods:
+            if rod.name == name:
+                return rod
+        raise ValueError(f"rod {name!r}: no such rod (known: "
+                         f"{', '.join(r.name for r in self.rods)})")
+
+    def replace(self, **changes: Any) -> "Scene":
+        """``dataclasses.replace``; not re-validated, and ``raw`` / ``to_dict`` keep
+        describing the original input."""
+        return dataclasses.replace(self, **changes)
+
+
+# ----------------------------------------------------------------------------- parsing
+
+_TOP_KEYS = ("name", "solver", "gravity", "materials", "rods", "constraints", "loads",
+             "initial_velocity")
+_SOLVER_KEYS = ("kind", "tolerance", "max_iterations", "load_steps", "t_end", "dt",
+                "rho_inf", "save_every", "inertia")
+_MATERIAL_KEYS = ("name", "E", "G", "nu", "density", "viscosity")
+_ROD_KEYS = ("name", "material", "section", "shear_coefficients", "stiffness", "inertia",
+             "elements", "geometry", "base", "initial")
+_SECTIONS = {"circle": (circle, ("diameter",)),
+             "tube": (tube, ("outer_diameter", "inner_diameter")),
+             "rectangle": (rectangle, ("width", "height")),
+             "semicircle": (semicircle, ("radius",))}
+_STIFFNESS_KEYS = ("EA", "GAy", "GAz", "GJ", "EIy", "EIz")
+_INERTIA_KEYS = ("rhoA", "rhoJ", "rhoIy", "rhoIz")
+_GEOMETRY_KEYS = {"straight": ("length",), "arc": ("radius", "angle_deg"),
+                  "helix": ("radius", "pitch", "turns"), "polyline": ("points",)}
+_PROFILE_KEYS = {"constant": (), "ramp": ("t0", "t1"), "smoothstep": ("t0", "t1"),
+                 "linear": ("rate",), "table": ("t", "scale", "file")}
+
+
+def _array_of_tables(d: dict, key: str) -> list[dict]:
+    items = d.get(key, [])
+    if not isinstance(items, list):
+        fail(key, f"must be an array of tables, got {type(items).__name__}")
+    for i, item in enumerate(items):
+        table(item, index(key, i))
+    return items
+
+
+def _parse_scene(d: Any, base_dir: Path) -> Scene:
+    raw = plain(table(d, "", "a scene table (dict)"))
+    check_keys(raw, "", _TOP_KEYS, required=("solver", "rods"))
+    name = string(raw["name"], "name") if "name" in raw else None
+    solver = _parse_solver(raw["solver"])
+    gravity = None
+    if "gravity" in raw:
+        g = table(raw["gravity"], "gravity")
+        check_keys(g, "gravity", ("vector",), required=("vector",))
+        gravity = readonly(vector(g["vector"], "gravity.vector"))
+
+    materials = _parse_materials(_array_of_tables(raw, "materials"))
+    rod_items = _array_of_tables(raw, "rods")
+    if not rod_items:
+        fail("rods", "must contain at least one rod")
+    rods: dict[str, RodSpec] = {}
+    for i, item in enumerate(rod_items):
+        rod = _parse_rod(item, index("rods", i), materials)
+        if rod.name in rods:
+            fail(index("rods", i) + ".name", f"duplicate rod name {rod.name!r}")
+        rods[rod.name] = rod
+
+    constraints = _parse_constraints(_array_of_tables(raw, "constraints"), rods)
+    loads = tuple(_parse_load(item, index("loads", i), rods, base_dir)
+                  for i, item in enumerate(_array_of_tables(raw, "loads")))
+    velocities = _parse_velocities(_array_of_tables(raw, "initial_velocity"), rods)
+    if solver.kind == "static":  # rigid-body motion left free makes statics singular
+        for i, rod in enumerate(rods.values()):
+            kinds = [c.kind for c in constraints if c.rod == rod.name]
+            if not {"clamp", "drive"} & set(kinds) and kinds.count("pin") < 2:
+                fail("constraints", f"rod {rod.name!r} (rods[{i}]) is free to move as a "
+                     "rigid body; a static solve needs a clamp, a drive or two pins on it")
+    return Scene(name=name, solver=solver, gravity=gravity, rods=tuple(rods.values()),
+                 constraints=constraints, loads=loads, initial_velocity=velocities,
+                 source=None, raw=raw)
+
+
+def _parse_solver(value: Any) -> SolverSettings:
+    s = table(value, "solver")
+    check_keys(s, "solver", _SOLVER_KEYS, required=("kind",))
+    kind = choice(s["kind"], "solver.kind", ("static", "dynamic"))
+    out: dict[str, Any] = {"kind": kind}
+    if "tolerance" in s:
+        out["tolerance"] = positive(s["tolerance"], "solver.tolerance")
+    for key in ("max_iterations", "load_steps", "save_every"):
+        if key in s:
+            out[key] = integer(s[key], join("solver", key), minimum=1)
+    for key in ("t_end", "dt"):
+        if key in s:
+            out[key] = positive(s[key], join("solver", key))
+        elif kind == "dynamic":
+            require(s, "solver", key)
+    if "dt" in out and "t_end" in out and out["dt"] > out["t_end"]:
+        fail("solver.dt", f"must be <= solver.t_end ({out['t_end']}), got {out['dt']}")
+    if "rho_inf" in s:
+        out["rho_inf"] = number(s["rho_inf"], "solver.rho_inf")
+        if not 0.0 <= out["rho_inf"] <= 1.0:
+            fail("solver.rho_inf", f"must be in [0, 1], got {out['rho_inf']}")
+    if "inertia" in s:
+        out["inertia"] = choice(s["inertia"], "solver.inertia", ("consistent", "lumped"))
+    return SolverSettings(**out)
+
+
+def _material_from_table(m: dict, path: str, need_name: bool) -> Material:
+    check_keys(m, path, _MATERIAL_KEYS, required=("name",) if need_name else ())
+    require(m, path, "E")
+    require(m, path, "density")
+    if ("G" in m) == ("nu" in m):
+        fail(path, "give exactly one of G, nu")
+    args: dict[str, Any] = {}
+    for key in _MATERIAL_KEYS:
+        if key == "name" and key in m:
+            args["name"] = string(m[key], join(path, key))
+            if not args["name"]:
+                fail(join(path, key), "must not be empty")
+        elif key in m:
+            check = positive if key in ("E", "G", "density") else number
+            args[key] = check(m[key], join(path, key))
+    with prefixed(path, _MATERIAL_KEYS):
+        return Material(**args)
+
+
+def _parse_materials(items: list[dict]) -> dict[str, Material]:
+    customs: dict[str, Material] = {}
+    for i, m in enumerate(items):
+        path = index("materials", i)
+        material = _material_from_table(m, path, need_name=True)
+        if material.name in BUILTIN_MATERIALS:
+            fail(join(path, "name"), f"{material.name!r} is a built-in material; "
+                 "choose another name")
+        if material.name in customs:
+            fail(join(path, "name"), f"duplicate material name {material.name!r}")
+        customs[material.name] = material
+    return customs
+
+
+def _parse_rod(r: dict, path: str, materials: dict[str, Material]) -> RodSpec:
+    check_keys(r, path, _ROD_KEYS, required=("name", "elements", "geometry"))
+    name = string(r["name"], join(path, "name"))
+    if not name:
+        fail(join(path, "name"), "must not be empty")
+    mpath = join(path, "material")
+    material = _rod_material(r["material"], mpath, materials) if "material" in r else None
+
+    stiffness = inertia = None
+    if "stiffness" in r:
+        spath = join(path, "stiffness")
+        k = table(r["stiffness"], spath)
+        check_keys(k, spath, _STIFFNESS_KEYS, required=_STIFFNESS_KEYS)
+        args = {n: number(k[n], join(spath, n)) for n in _STIFFNESS_KEYS}
+        with prefixed(spath, _STIFFNESS_KEYS):
+            stiffness = custom_stiffness(**args)
+    if "inertia" in r:
+        ipath = join(path, "inertia")
+        m = table(r["inertia"], ipath)
+        check_keys(m, ipath, _INERTIA_KEYS, required=_INERTIA_KEYS)
+        args = {n: number(m[n], join(ipath, n)) for n in _INERTIA_KEYS}
+        with prefixed(ipath, _INERTIA_KEYS):
+            inertia = custom_inertia(**args)
+
+    section = None
+    if "section" in r:
+        section = _parse_section(r["section"], join(path, "section"))
+    elif stiffness is None or inertia is None:
+        fail(join(path, "section"), "required unless both stiffness and inertia are given")
+    if section is not None and material is None:
+        fail(mpath, "required key missing (a rod with a section needs a material)")
+
+    shear = None
+    if "shear_coefficients" in r:
+        kpath = join(path, "shear_coefficients")
+        if stiffness is not None:
+            fail(kpath, "has no effect when stiffness is given (remove one)")
+        values = vector(r["shear_coefficients"], kpath, 2)
+        for j, kv in enumerate(values):
+            if kv <= 0.0:
+                fail(index(kpath, j), f"must be > 0, got {kv}")
+        shear = (float(values[0]), float(values[1]))
+
+    elements = integer(r["elements"], join(path, "elements"), minimum=1)
+    geometry = _parse_geometry(r["geometry"], join(path, "geometry"))
+
+    position, rotation = np.zeros(3), np.eye(3)
+    if "base" in r:
+        bpath = join(path, "base")
+        b = table(r["base"], bpath)
+        check_keys(b, bpath, ("position", "rotation"))
+        if "position" in b:
+            position = vector(b["position"], join(bpath, "position"))
+        if "rotation" in b:
+            rotation = rodrigues(rotation_vector(b["rotation"], join(bpath, "rotation")))
+
+    initial_points = None
+    if "initial" in r:
+        ipath = join(path, "initial")
+        init = table(r["initial"], ipath)
+        check_keys(init, ipath, ("points",), required=("points",))
+        initial_points = _polyline(init["points"], join(ipath, "points"))
+
+    return RodSpec(name=name, material=material, section=section, shear_coefficients=shear,
+                   stiffness=readonly(stiffness), inertia=readonly(inertia),
+                   elements=elements, geometry=geometry, base_position=readonly(position),
+                   base_rotation=readonly(rotation), initial_points=readonly(initial_points))
+
+
+def _rod_material(value: Any, path: str, materials: dict[str, Material]) -> Material:
+    if isinstance(value, dict):
+        return _material_from_table(value, path, need_name=False)
+    name = string(value, path)
+    if name in materials:
+        return materials[name]
+    if name not in BUILTIN_MATERIALS:
+        known = ", ".join([*materials, *BUILTIN_MATERIALS])
+        fail(path, f"unknown material {name!r} (known: {known})")
+    return get_material(name)
+
+
+def _parse_section(value: Any, path: str) -> Section:
+    s = table(value, path)
+    shape = choice(require(s, path, "shape"), join(path, "shape"), tuple(_SECTIONS))
+    build, keys = _SECTIONS[shape]
+    check_keys(s, path, ("shape", *keys), required=keys)
+    args = {k: (number if k == "inner_diameter" else positive)(s[k], join(path, k))
+            for k in keys}
+    with prefixed(path, keys):
+        return build(**args)
+
+
+def _polyline(value: Any, path: str) -> np.ndarray:
+    points = matrix(value, path, 3, min_rows=2)
+    lengths = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    for j, seg in enumerate(lengths):
+        if seg == 0.0:
+            fail(index(path, j + 1), "repeats the previous point (zero-length segment)")
+    return points
+
+
+def _parse_geometry(value: Any, path: str) -> GeometrySpec:
+    g = table(value, path)
+    kind = choice(require(g, path, "kind"), join(path, "kind"), tuple(_GEOMETRY_KEYS))
+    keys = _GEOMETRY_KEYS[kind]
+    check_keys(g, path, ("kind", *keys), required=keys)
+    if kind == "polyline":
+        return GeometrySpec(kind, points=readonly(_polyline(g["points"], join(path, "points"))))
+    if kind == "straight":
+        return GeometrySpec(kind, length=positive(g["length"], join(path, "length")))
+    radius = positive(g["radius"], join(path, "radius"))
+    if kind == "arc":
+        angle = positive(g["angle_deg"], join(path, "angle_deg"))
+        if angle > 360.0:
+            fail(join(path, "angle_deg"), f"must be <= 360, got {angle}")
+        return GeometrySpec(kind, radius=radius, angle_deg=angle)
+    pitch = number(g["pitch"], join(path, "pitch"))
+    if pitch < 0.0:
+        fail(join(path, "pitch"), f"must be >= 0, got {pitch}")
+    turns = positive(g["turns"], join(path, "turns"))
+    return GeometrySpec(kind, radius=radius, pitch=pitch, turns=turns)
+
+
+def _rod_of(item: dict, path: str, rods: dict[str, RodSpec]) -> RodSpec:
+    name = string(require(item, path, "rod"), join(path, "rod"))
+    if name not in rods:
+        fail(join(path, "rod"), f"no rod named {name!r} (known: {', '.join(rods)})")
+    return rods[name]
+
+
+def _node(item: dict, path: str, rod: RodSpec) -> int:
+    """Resolve ``node`` (negative counts from the end) or ``s`` (arc length) to an index."""
+    if ("node" in item) == ("s" in item):
+        fail(path, "give exactly one of node, s")
+    n = rod.nodes
+    if "node" in item:
+        node = integer(item["node"], join(path, "node"))
+        if not -n <= node < n:
+            fail(join(path, "node"), f"out of range for rod {rod.name!r} with {n} nodes "
+                 f"(allowed {-n}..{n - 1}), got {node}")
+        return node % n
+    s = number(item["s"], join(path, "s"))
+    length = rod.geometry.arc_length
+    if not -1e-12 * length <= s <= length * (1.0 + 1e-12):
+        fail(join(path, "s"), f"must be in [0, {length:g}] (rod {rod.name!r} arc length), "
+             f"got {s}")
+    return int(round(min(max(s, 0.0), length) / length * rod.elements))
+
+
+def _parse_constraints(items: list[dict], rods: dict[str, RodSpec]) -> tuple:
+    out: list[ConstraintSpec] = []
+    taken: dict[tuple[str, int], str] = {}
+    for i, c in enumerate(items):
+        path = index("constraints", i)
+        kind = choice(require(c, path, "kind"), join(path, "kind"), ("clamp", "pin", "drive"))
+        extra = ("times", "displacement", "rotation", "slides_along") if kind == "drive" else ()
+        check_keys(c, path, ("kind", "rod", "node", "s", *extra), required=("rod",))
+        rod = _rod_of(c, path, rods)
+        node = _node(c, path, rod)
+        where = join(path, "node" if "node" in c else "s")
+        if (rod.name, node) in taken:
+            fail(where, f"node {node} of rod {rod.name!r} is already constrained by "
+                 f"{taken[rod.name, node]}")
+        taken[rod.name, node] = path
+        fields: dict[str, Any] = {}
+        if kind == "drive":
+            fields = _parse_drive(c, path)
+        out.append(ConstraintSpec(kind=kind, rod=rod.name, node=node, **fields))
+    return tuple(out)
+
+
+def _parse_drive(c: dict, path: str) -> dict[str, Any]:
+    tpath = join(path, "times")
+    times = vector(require(c, path, "times"), tpath, None, min_len=1)
+    if np.any(np.diff(times) <= 0.0):
+        fail(tpath, "must be strictly increasing")
+    samples = len(times)
+    if "displacement" not in c and "rotation" not in c:
+        fail(path, "a drive needs displacement and/or rotation samples")
+    disp, rot = np.zeros((samples, 3)), np.zeros((samples, 3))
+    if "displacement" in c:
+        disp = matrix(c["displacement"], join(path, "displacement"), 3)
+    if "rotation" in c:
+        rpath = join(path, "rotation")
+        rows = c["rotation"]
+        if not isinstance(rows, list):
+            fail(rpath, "must be a list of rotations (one per time)")
+        rot = np.array([rotation_vector(row, index(rpath, j)) for j, row in enumerate(rows)])
+    for key, arr in (("displacement", disp), ("rotation", rot)):
+        if len(arr) != samples:
+            fail(join(path, key), f"must have one row per time ({samples}), got {len(arr)}")
+    slides = None
+    if "slides_along" in c:
+        spath = join(path, "slides_along")
+        slides = vector(c["slides_along"], spath)
+        norm = float(np.linalg.norm(slides))
+        if norm == 0.0:
+            fail(spath, "must not be the zero vector")
+        slides = readonly(slides / norm)
+    return dict(times=readonly(times), displacement=readonly(disp),
+                rotation=readonly(rot.reshape(samples, 3)), slides_along=slides)
+
+
+def _parse_load(ld: dict, path: str, rods: dict[str, RodSpec], base_dir: Path) -> LoadSpec:
+    kind = choice(require(ld, path, "kind"), join(path, "kind"),
+                  ("force", "moment", "distributed_force"))
+    where = () if kind == "distributed_force" else ("node", "s")
+    check_keys(ld, path, ("kind", "rod", *where, "vector", "frame", "profile"),
+               required=("rod", "vector"))
+    rod = _rod_of(ld, path, rods)
+    node = None if kind == "distributed_force" else _node(ld, path, rod)
+    vec = vector(ld["vector"], join(path, "vector"))
+    frame = choice(ld.get("frame", "world"), join(path, "frame"), ("world", "local"))
+    profile = _parse_profile(ld.get("profile", {"kind": "constant"}), join(path, "profile"),
+                             base_dir)
+    if profile.kind == "table" and "file" in ld.get("profile", {}):
+        ld["profile"] = {"kind": "table", "t": profile.t.tolist(),
+                         "scale": profile.scale.tolist()}  # keep raw self-contained
+    return LoadSpec(kind=kind, rod=rod.name, node=node, vector=readonly(vec), frame=frame,
+                    profile=profile)
+
+
+def _parse_profile(value: Any, path: str, base_dir: Path) -> ProfileSpec:
+    p = table(value, path)
+    kind = choice(require(p, path, "kind"), join(path, "kind"), tuple(_PROFILE_KEYS))
+    check_keys(p, path, ("kind", *_PROFILE_KEYS[kind]))
+    if kind in ("ramp", "smoothstep"):
+        t0 = number(p.get("t0", 0.0), join(path, "t0"))
+        if t0 < 0.0:
+            fail(join(path, "t0"), f"must be >= 0, got {t0}")
+        t1 = number(require(p, path, "t1"), join(path, "t1"))
+        if t1 <= t0:
+            fail(join(path, "t1"), f"must be > t0 ({t0}), got {t1}")
+        return ProfileSpec(kind, t0=t0, t1=t1)
+    if kind == "linear":
+        return ProfileSpec(kind, rate=number(require(p, path, "rate"), join(path, "rate")))
+    if kind == "constant":
+        return ProfileSpec(kind)
+    if "file" in p:
+        if "t" in p or "scale" in p:
+            fail(join(path, "file"), "give either file or t and scale, not both")
+        t, scale = read_table(p["file"], join(path, "file"), base_dir)
+        tpath = join(path, "file")
+    else:
+        require(p, path, "t")
+        require(p, path, "scale")
+        tpath = join(path, "t")
+        t = vector(p["t"], tpath, None, min_len=1)
+        scale = vector(p["scale"], join(path, "scale"), None, min_len=1)
+        if len(scale) != len(t):
+            fail(join(path, "scale"), f"must have as many entries as t ({len(t)}), "
+                 f"got {len(scale)}")
+    if np.any(np.diff(t) <= 0.0):
+        fail(tpath, "must be strictly increasing" if tpath.endswith(".t")
+             else "the t column must be strictly increasing")
+    return ProfileSpec(kind, t=readonly(t), scale=readonly(scale))
+
+
+def _parse_velocities(items: list[dict], rods: dict[str, RodSpec]) -> tuple:
+    out: list[InitialVelocitySpec] = []
+    seen: set[str] = set()
+    for i, v in enumerate(items):
+        path = index("initial_velocity", i)
+        check_keys(v, path, ("rod", "linear", "angular"), required=("rod",))
+        rod = _rod_of(v, path, rods)
+        if rod.name in seen:
+            fail(join(path, "rod"), f"rod {rod.name!r} already has an initial velocity")
+        seen.add(rod.name)
+        linear = vector(v.get("linear", [0.0, 0.0, 0.0]), join(path, "linear"))
+        angular = vector(v.get("angular", [0.0, 0.0, 0.0]), join(path, "angular"))
+        out.append(InitialVelocitySpec(rod.name, readonly(linear), readonly(angular)))
+    return tuple(out)
+
+
+# ----------------------------------------------------------------------------- files
+
+def load_scene(path: str | Path) -> Scene:
+    """Read and validate a ``.toml`` or ``.json`` scene file."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".toml", ".json"):
+        raise ValueError(f"{path}: unsupported scene file type {path.suffix!r} "
+                         "(use .toml or .json)")
+    try:
+        if suffix == ".json":
+            with open(path, encoding="utf-8") as fh:
+                data = json.load(fh)
+        else:
+            if sys.version_info >= (3, 11):
+                import tomllib
+            else:  # pragma: no cover
+                import tomli as tomllib
+            with open(path, "rb") as fh:
+                data = tomllib.load(fh)
+    except OSError as err:
+        raise ValueError(f"{path}: cannot read scene file: {err.strerror or err}") from None
+    except ValueError as err:  # JSONDecodeError and TOMLDecodeError are ValueErrors
+        raise ValueError(f"{path}: not valid {suffix[1:].upper()}: {err}") from None
+    scene = Scene.from_dict(data, base_dir=path.parent)
+    return dataclasses.replace(scene, source=str(path))
+
+
+def save_scene(scene: Scene, path: str | Path) -> None:
+    """Write ``scene.to_dict()`` as ``.json`` or ``.toml``."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    data = scene.to_dict()
+    if suffix == ".json":
+        path.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+    elif suffix == ".toml":
+        path.write_text(toml_document(data), encoding="utf-8")
+    else:
+        raise ValueError(f"{path}: unsupported scene file type {path.suffix!r} "
+                         "(use .toml or .json)")
