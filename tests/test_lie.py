@@ -27,18 +27,16 @@ def np_skew(w):
     return np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]], dtype=np.asarray(w).dtype)
 
 
-def np_vee3(W):
-    return np.array([W[2, 1], W[0, 2], W[1, 0]])
-
-
 def np_hat(xi):
     X = np.zeros((4, 4), dtype=np.asarray(xi).dtype)
     X[:3, :3], X[:3, 3] = np_skew(xi[3:]), xi[:3]
     return X
 
 
-def np_vee6(X):
-    return np.array([X[0, 3], X[1, 3], X[2, 3], X[2, 1], X[0, 2], X[1, 0]])
+def np_vee(X):
+    """Inverse of np_skew (3x3 -> 3) or np_hat (4x4 -> 6)."""
+    w = np.array([X[2, 1], X[0, 2], X[1, 0]])
+    return w if X.shape == (3, 3) else np.r_[X[:3, 3], w]
 
 
 def np_ad(xi):
@@ -122,7 +120,7 @@ def f64(a):
     return np.asarray(a, dtype=np.float64)
 
 
-def call(fn, *args):
+def call(fn, *args):  # module function on float64 jnp inputs -> numpy
     return np.asarray(fn(*(jnp.asarray(a, dtype=jnp.float64) for a in args)))
 
 
@@ -156,9 +154,9 @@ TW_IDS = [f"{a:.7g}" for a in ANGLES] + ["parallel", "translation"]
 
 GROUPS = {
     "so3": dict(exp=lie.exp_so3, log=lie.log_so3, T=lie.tangent_so3, Tinv=lie.tangent_so3_inv,
-                hat=np_skew, vee=np_vee3, ad=np_skew, samples=ROTVECS, ids=TW_IDS[:len(ANGLES)]),
+                hat=np_skew, vee=np_vee, ad=np_skew, samples=ROTVECS, ids=TW_IDS[:len(ANGLES)]),
     "se3": dict(exp=lie.exp_se3, log=lie.log_se3, T=lie.tangent_se3, Tinv=lie.tangent_se3_inv,
-                hat=np_hat, vee=np_vee6, ad=np_ad, samples=TWISTS, ids=TW_IDS),
+                hat=np_hat, vee=np_vee, ad=np_ad, samples=TWISTS, ids=TW_IDS),
 }
 CASES = [pytest.param(g, x, id=f"{g}-{i}") for g in GROUPS
          for x, i in zip(GROUPS[g]["samples"], GROUPS[g]["ids"])]
@@ -175,7 +173,7 @@ def test_hat_vee_skew_ad():
     np.testing.assert_array_equal(call(lie.hat_se3, a), np_hat(a))
     np.testing.assert_array_equal(call(lie.vee_se3, np_hat(a)), a)
     # ad is the Lie bracket: hat(ad_a b) = hat(a) hat(b) - hat(b) hat(a)
-    bracket = np_vee6(np_hat(a) @ np_hat(b) - np_hat(b) @ np_hat(a))
+    bracket = np_vee(np_hat(a) @ np_hat(b) - np_hat(b) @ np_hat(a))
     np.testing.assert_allclose(call(lie.ad_se3, a) @ b, bracket, atol=1e-14)
     np.testing.assert_allclose(call(lie.ad_se3, a), np_ad(a), atol=0)
 
@@ -312,7 +310,7 @@ def test_adjoint():
         Ad1, Ad2 = call(lie.adjoint_se3, H1), call(lie.adjoint_se3, H2)
         np.testing.assert_allclose(call(lie.adjoint_se3, H1 @ H2), Ad1 @ Ad2, rtol=0, atol=1e-13)
         np.testing.assert_allclose(Ad1, scipy_expm(np_ad(a)), rtol=0, atol=1e-13)
-        np.testing.assert_allclose(Ad1 @ y, np_vee6(H1 @ np_hat(y) @ np_ginv(H1)), rtol=0, atol=1e-13)
+        np.testing.assert_allclose(Ad1 @ y, np_vee(H1 @ np_hat(y) @ np_ginv(H1)), rtol=0, atol=1e-13)
         np.testing.assert_allclose(call(lie.adjoint_se3, np_ginv(H1)), np.linalg.inv(Ad1), atol=1e-12)
 
 
