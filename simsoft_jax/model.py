@@ -103,7 +103,7 @@ jax.tree_util.register_dataclass(
 
 
 def _rod_constants(rod):
-    """Stiffness, inertia and viscosity diagonals (6,) of a RodSpec."""
+    """Stiffness, inertia and viscosity diagonals (6,) of a RodSpec or SegmentSpec."""
     K = rod.stiffness if rod.stiffness is not None else stiffness_diagonal(
         rod.section, rod.material, rod.shear_coefficients)
     M = rod.inertia if rod.inertia is not None else inertia_diagonal(rod.section, rod.material)
@@ -157,10 +157,11 @@ def build_model(scene) -> Model:
         R_ref, p_ref = _world_frames(rod)
         R_init, p_init = _initial_frames(rod, R_ref, p_ref)
         d0.append(_reference_twists(R_ref, p_ref))
-        Kr, Mr, Vr = _rod_constants(rod)
-        K.append(np.tile(Kr, (rod.elements, 1)))
-        M.append(np.tile(Mr, (rod.elements, 1)))
-        V.append(np.tile(Vr, (rod.elements, 1)))
+        for piece in (rod.segments or (rod,)):
+            Kr, Mr, Vr = _rod_constants(piece)
+            K.append(np.tile(Kr, (piece.elements, 1)))
+            M.append(np.tile(Mr, (piece.elements, 1)))
+            V.append(np.tile(Vr, (piece.elements, 1)))
         R0.append(R_init)
         p0.append(p_init)
         rods.append(RodInfo(rod.name, node_offset, rod.elements + 1, element_offset,

@@ -11,7 +11,6 @@ from __future__ import annotations
 import copy
 import dataclasses
 import json
-import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,6 +22,8 @@ from ._validate import (SpecBase, check_keys, choice, fail, index, integer, join
                         number, plain, positive, prefixed, read_table, readonly, require,
                         rodrigues, rotation_vector, string, table, toml_document, vector)
 from .materials import BUILTIN_MATERIALS, Material, get_material
+from .scene_specs import (ConstraintSpec, GeometrySpec, InitialVelocitySpec, LoadSpec,
+                          ProfileSpec, RodSpec, SegmentSpec, SolverSettings)
 from .sections import (Section, circle, custom_inertia, custom_stiffness, rectangle,
                        semicircle, tube)
 
@@ -30,98 +31,7 @@ __all__ = ["SolverSettings", "GeometrySpec", "RodSpec", "ConstraintSpec", "Profi
            "LoadSpec", "InitialVelocitySpec", "Scene", "load_scene", "save_scene"]
 
 
-# ----------------------------------------------------------------------------- data model
-
-@dataclass(frozen=True, eq=False)
-class SolverSettings(SpecBase):
-    kind: str                         # "static" | "dynamic"
-    tolerance: float = 1e-10
-    max_iterations: int = 50
-    load_steps: int = 10
-    t_end: float | None = None
-    dt: float | None = None
-    rho_inf: float = 0.9
-    save_every: int = 1
-    inertia: str = "consistent"       # "consistent" | "lumped"
-
-
-@dataclass(frozen=True, eq=False)
-class GeometrySpec(SpecBase):
-    kind: str                         # "straight" | "arc" | "helix" | "polyline"
-    length: float | None = None
-    radius: float | None = None
-    angle_deg: float | None = None
-    pitch: float | None = None
-    turns: float | None = None
-    points: np.ndarray | None = None  # (P, 3), polyline only
-
-    @property
-    def arc_length(self) -> float:
-        if self.kind == "straight":
-            return float(self.length)
-        if self.kind == "arc":
-            return float(self.radius * math.radians(self.angle_deg))
-        if self.kind == "helix":
-            return float(self.turns * math.hypot(2.0 * math.pi * self.radius, self.pitch))
-        return float(np.linalg.norm(np.diff(self.points, axis=0), axis=1).sum())
-
-
-@dataclass(frozen=True, eq=False)
-class RodSpec(SpecBase):
-    name: str
-    material: Material | None         # None only when there is no section (both overrides)
-    section: Section | None
-    shear_coefficients: tuple[float, float] | None
-    stiffness: np.ndarray | None      # (6,) EA, GAy, GAz, GJ, EIy, EIz override
-    inertia: np.ndarray | None        # (6,) rhoA x3, rhoJ, rhoIy, rhoIz override
-    elements: int
-    geometry: GeometrySpec
-    base_position: np.ndarray         # (3,)
-    base_rotation: np.ndarray         # (3, 3), columns = local axes of node 0 in world
-    initial_points: np.ndarray | None = None  # (P, 3)
-
-    @property
-    def nodes(self) -> int:
-        return self.elements + 1
-
-
-@dataclass(frozen=True, eq=False)
-class ConstraintSpec(SpecBase):
-    kind: str                         # "clamp" | "pin" | "drive"
-    rod: str
-    node: int                         # non-negative
-    times: np.ndarray | None = None          # (S,)   drive only
-    displacement: np.ndarray | None = None   # (S, 3) drive only
-    rotation: np.ndarray | None = None       # (S, 3) rotation vectors, drive only
-    slides_along: np.ndarray | None = None   # (3,) unit vector, drive only
-
-
-@dataclass(frozen=True, eq=False)
-class ProfileSpec(SpecBase):
-    kind: str                         # "constant" | "ramp" | "smoothstep" | "linear" | "table"
-    t0: float | None = None
-    t1: float | None = None
-    rate: float | None = None
-    t: np.ndarray | None = None
-    scale: np.ndarray | None = None
-
-
-@dataclass(frozen=True, eq=False)
-class LoadSpec(SpecBase):
-    kind: str                         # "force" | "moment" | "distributed_force"
-    rod: str
-    node: int | None                  # None for distributed_force
-    vector: np.ndarray                # (3,)
-    frame: str                        # "world" (dead) | "local" (follower)
-    profile: ProfileSpec
-
-
-@dataclass(frozen=True, eq=False)
-class InitialVelocitySpec(SpecBase):
-    rod: str
-    linear: np.ndarray                # (3,)
-    angular: np.ndarray               # (3,)
-
+# ----------------------------------------------------------------------------- scene
 
 @dataclass(frozen=True, eq=False)
 class Scene(SpecBase):
@@ -165,7 +75,9 @@ _SOLVER_KEYS = ("kind", "tolerance", "max_iterations", "load_steps", "t_end", "d
                 "rho_inf", "save_every", "inertia")
 _MATERIAL_KEYS = ("name", "E", "G", "nu", "density", "viscosity")
 _ROD_KEYS = ("name", "material", "section", "shear_coefficients", "stiffness", "inertia",
-             "elements", "geometry", "base", "initial")
+             "elements", "geometry", "base", "initial", "segments")
+_SEGMENT_KEYS = ("elements", "material", "section", "shear_coefficients", "stiffness",
+                 "inertia")
 _SECTIONS = {"circle": (circle, ("diameter",)),
              "tube": (tube, ("outer_diameter", "inner_diameter")),
              "rectangle": (rectangle, ("width", "height")),
@@ -283,13 +195,12 @@ def _parse_materials(items: list[dict]) -> dict[str, Material]:
     return customs
 
 
-def _parse_rod(r: dict, path: str, materials: dict[str, Material]) -> RodSpec:
-    check_keys(r, path, _ROD_KEYS, required=("name", "elements", "geometry"))
-    name = string(r["name"], join(path, "name"))
-    if not name:
-        fail(join(path, "name"), "must not be empty")
+def _parse_properties(r: dict, path: str, materials: dict[str, Material],
+                      material: Material | None = None, required: bool = True) -> dict:
+    """Material, section, shear coefficients and overrides of a rod or of a segment."""
     mpath = join(path, "material")
-    material = _rod_material(r["material"], mpath, materials) if "material" in r else None
+    if "material" in r:
+        material = _rod_material(r["material"], mpath, materials)
 
     stiffness = inertia = None
     if "stiffness" in r:
@@ -310,7 +221,7 @@ def _parse_rod(r: dict, path: str, materials: dict[str, Material]) -> RodSpec:
     section = None
     if "section" in r:
         section = _parse_section(r["section"], join(path, "section"))
-    elif stiffness is None or inertia is None:
+    elif required and (stiffness is None or inertia is None):
         fail(join(path, "section"), "required unless both stiffness and inertia are given")
     if section is not None and material is None:
         fail(mpath, "required key missing (a rod with a section needs a material)")
@@ -325,6 +236,43 @@ def _parse_rod(r: dict, path: str, materials: dict[str, Material]) -> RodSpec:
             if kv <= 0.0:
                 fail(index(kpath, j), f"must be > 0, got {kv}")
         shear = (float(values[0]), float(values[1]))
+    return dict(material=material, section=section, shear_coefficients=shear,
+                stiffness=readonly(stiffness), inertia=readonly(inertia))
+
+
+def _parse_segments(value: Any, path: str, materials: dict[str, Material],
+                    material: Material | None) -> tuple:
+    """``segments``: consecutive pieces of a rod, each with its own elements and section."""
+    if not isinstance(value, list) or not value:
+        fail(path, "must be a non-empty array of tables")
+    segments = []
+    for i, item in enumerate(value):
+        ipath = index(path, i)
+        seg = table(item, ipath)
+        check_keys(seg, ipath, _SEGMENT_KEYS, required=("elements",))
+        props = _parse_properties(seg, ipath, materials, material)
+        segments.append(SegmentSpec(
+            elements=integer(seg["elements"], join(ipath, "elements"), minimum=1), **props))
+    return tuple(segments)
+
+
+def _parse_rod(r: dict, path: str, materials: dict[str, Material]) -> RodSpec:
+    check_keys(r, path, _ROD_KEYS, required=("name", "geometry"))
+    name = string(r["name"], join(path, "name"))
+    if not name:
+        fail(join(path, "name"), "must not be empty")
+    has_segments = "segments" in r
+    props = _parse_properties(r, path, materials, required=not has_segments)
+    segments = None
+    if has_segments:
+        segments = _parse_segments(r["segments"], join(path, "segments"), materials,
+                                   props["material"])
+        total = sum(seg.elements for seg in segments)
+        if "elements" in r and integer(r["elements"], join(path, "elements")) != total:
+            fail(join(path, "elements"), f"must equal the sum over segments ({total})")
+        r = {**r, "elements": total}
+    elif "elements" not in r:
+        fail(join(path, "elements"), "required key missing")
 
     elements = integer(r["elements"], join(path, "elements"), minimum=1)
     geometry = _parse_geometry(r["geometry"], join(path, "geometry"))
@@ -346,10 +294,9 @@ def _parse_rod(r: dict, path: str, materials: dict[str, Material]) -> RodSpec:
         check_keys(init, ipath, ("points",), required=("points",))
         initial_points = _polyline(init["points"], join(ipath, "points"))
 
-    return RodSpec(name=name, material=material, section=section, shear_coefficients=shear,
-                   stiffness=readonly(stiffness), inertia=readonly(inertia),
-                   elements=elements, geometry=geometry, base_position=readonly(position),
-                   base_rotation=readonly(rotation), initial_points=readonly(initial_points))
+    return RodSpec(name=name, **props, elements=elements, geometry=geometry,
+                   base_position=readonly(position), base_rotation=readonly(rotation),
+                   initial_points=readonly(initial_points), segments=segments)
 
 
 def _rod_material(value: Any, path: str, materials: dict[str, Material]) -> Material:
