@@ -57,29 +57,27 @@ def internal_force(P, d, d0, length, stiffness):
     return P.T @ (stiffness * strain)
 
 
-def velocity_field_map(xi, d, P):
-    """``N(s, d)`` (6,12) with ``v(s) = N [v_A; v_B]`` at ``xi = s/L`` (seed eqs. 36, 40; S38).
-
-    Written as ``N = [Ad_{exp(-xi d)}, 0] + xi T(xi d) P(d)`` (the same as S38), reusing the
-    element's strain map ``P`` (6,12).
-    """
-    left = lie.adjoint_se3(lie.exp_se3(-xi * d))
-    return (jnp.concatenate([left, jnp.zeros_like(left)], axis=1)
-            + xi * lie.tangent_se3(xi * d) @ P)
-
-
 def distributed_force(RA, d, P, length, world_force, local_force):
     """Consistent nodal forces of a distributed force per unit length (N/m) (spec S44).
 
     ``world_force`` (3,) is fixed in space (dead: gravity ``rhoA g`` and world-frame
     distributed loads); ``local_force`` (3,) turns with the section (follower). The force
-    acts on the reference line: ``f = int_0^L N(s, d)^T [R(s)^T f_world + f_local; 0] ds``,
-    3-point Gauss-Legendre quadrature, ``R(s) = R_A exp(xi d_w)``. ``P = strain_map(d)``.
-    Returns (12,).
+    acts on the reference line: ``f = int_0^L N(s, d)^T [R(s)^T f_world + f_local; 0] ds``
+    (3-point Gauss-Legendre), with ``N = [Ad_{exp(-xi d)}, 0] + xi T(xi d) P(d)`` (S38,
+    rewritten with S22). Only the force rows of ``N`` act, so with ``exp(xi d) = (R_xi,
+    p_xi)`` and ``g = R(s)^T f`` the integrand is
+    ``[R_xi g; p_xi x R_xi g; 0] + xi P^T [T_SO3(xi d_w)^T g; T_+(xi d)^T g]``.
+    ``P = strain_map(d)`` (6,12). Returns (12,).
     """
     def integrand(xi, weight):
-        R = RA @ lie.exp_so3(xi * d[3:])
-        force = R.T @ world_force + local_force
-        return (weight * length) * (velocity_field_map(xi, d, P)[:3].T @ force)
+        h = xi * d
+        R_xi = lie.exp_so3(h[3:])
+        T = lie.tangent_so3(h[3:])
+        p_xi = T.T @ h[:3]
+        f_a = RA.T @ world_force + R_xi @ local_force   # R_xi g, in node A's frame
+        g = R_xi.T @ f_a
+        direct = jnp.concatenate([f_a, jnp.cross(p_xi, f_a), jnp.zeros(6, d.dtype)])
+        through_d = xi * (P.T @ jnp.concatenate([T.T @ g, lie.tangent_plus(h[:3], h[3:]).T @ g]))
+        return (weight * length) * (direct + through_d)
 
     return jnp.sum(jax.vmap(integrand)(_GAUSS_POINTS, _GAUSS_WEIGHTS), axis=0)

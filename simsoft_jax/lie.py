@@ -222,7 +222,7 @@ def log_se3(H):
     return jnp.concatenate([_tangent_so3_inv_transpose(w) @ H[:3, 3], w])
 
 
-def _tangent_plus(U, w):
+def tangent_plus(U, w):
     """Off-diagonal block ``T_+(U, Omega)`` of ``T_SE3`` (spec S17, seed eq. 131 corrected)."""
     _, beta, a2, c3, c4 = _forward_coefficients(w)
     Us, W = skew(U), skew(w)
@@ -241,7 +241,7 @@ def tangent_se3(xi):
     """Body tangent ``T_SE3(xi)`` (6,6), block upper-triangular (seed eq. 129, spec S16)."""
     U, w = xi[:3], xi[3:]
     T = tangent_so3(w)
-    return jnp.block([[T, _tangent_plus(U, w)], [jnp.zeros((3, 3), T.dtype), T]])
+    return jnp.block([[T, tangent_plus(U, w)], [jnp.zeros((3, 3), T.dtype), T]])
 
 
 def tangent_se3_inv(xi):
