@@ -14,9 +14,16 @@ def _run(args) -> int:
         return 2
     if args.output:
         result.save(args.output)
-    status = "converged" if result.converged else f"NOT converged (load level {result.load_level:.4g})"
+    if result.converged:
+        status = "converged"
+    elif result.time is not None:
+        status = f"NOT converged (step failed at t = {result.failed_at:.6g} s)"
+    else:
+        status = f"NOT converged (load level {result.load_level:.4g})"
+    detail = (f"{len(result.time)} saved states" if result.time is not None
+              else f"residual {result.residual_norm:.3g}")
     print(f"{result.name or args.scene}: {status}; {result.newton_iterations} Newton iterations, "
-          f"residual {result.residual_norm:.3g}, solve {result.wall_time_s:.3f} s, "
+          f"{detail}, solve {result.wall_time_s:.3f} s, "
           f"compile {result.compile_time_s:.2f} s"
           + (f"; wrote {args.output}" if args.output else ""))
     return 0 if result.converged else 1

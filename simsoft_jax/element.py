@@ -81,3 +81,24 @@ def distributed_force(RA, d, P, length, world_force, local_force):
         return (weight * length) * (direct + through_d)
 
     return jnp.sum(jax.vmap(integrand)(_GAUSS_POINTS, _GAUSS_WEIGHTS), axis=0)
+
+
+def velocity_field_map(xi, d, P):
+    """``N(s, d)`` (6,12) with ``v(s) = N [v_A; v_B]`` at ``xi = s/L`` (seed eqs. 36, 40; S38).
+
+    Written as ``N = [Ad_{exp(-xi d)}, 0] + xi T(xi d) P(d)`` (the same as S38 by S22),
+    reusing the element's strain map ``P = strain_map(d)`` (6,12).
+    """
+    left = lie.adjoint_se3(lie.exp_se3(-xi * d))
+    return (jnp.concatenate([left, jnp.zeros_like(left)], axis=1)
+            + xi * lie.tangent_se3(xi * d) @ P)
+
+
+def viscous_force(P, velocities, length, viscosity):
+    """Kelvin-Voigt forces ``P^T Upsilon P v_e / L`` (12,) (seed eq. 8, spec S40).
+
+    ``velocities`` (12,) are the nodal body velocities ``[v_A; v_B]``; ``viscosity`` the
+    diagonal ``mu [3A, A, A, J_t, 3Iy, 3Iz]`` (spec S28).
+    """
+    strain_rate = P @ velocities / length
+    return P.T @ (viscosity * strain_rate)

@@ -14,9 +14,10 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from .dynamics import DynamicSettings, Trajectory, build_dynamics, simulate
 from .model import Model, build_model
 from .scene import Scene, load_scene
-from .statics import Equilibrium, settings_from_scene, solve_static
+from .statics import settings_from_scene, solve_static
 
 _COMPILED: dict = {}
 
@@ -34,41 +35,51 @@ def compiled_static_solver(model: Model, settings):
 
 
 class Result:
-    """Outcome of :func:`run`. Static results only (dynamic scenes: see :func:`run`).
+    """Outcome of :func:`run`.
 
-    Attributes: name, kind ("static"), converged (bool), newton_iterations (int),
-    residual_norm (N, weighted), load_level (fraction of the loads reached), wall_time_s
-    (solve, after compilation), compile_time_s, model (the Model), equilibrium (the raw
-    :class:`~simsoft_jax.statics.Equilibrium`).
+    Attributes: name, kind ("static" | "dynamic"), converged (bool), newton_iterations
+    (int, total), residual_norm (static: N, weighted; dynamic: None), load_level (static:
+    fraction of the loads reached), failed_at (dynamic: time of the failed step or None),
+    time ((T,) s, dynamic only), wall_time_s (after compilation), compile_time_s, model,
+    raw (the :class:`~simsoft_jax.statics.Equilibrium` or
+    :class:`~simsoft_jax.dynamics.Trajectory`).
     """
 
-    def __init__(self, scene: Scene, model: Model, equilibrium: Equilibrium,
-                 wall_time_s: float, compile_time_s: float):
+    def __init__(self, scene: Scene, model: Model, raw, wall_time_s: float,
+                 compile_time_s: float):
         self.name = scene.name
         self.kind = scene.solver.kind
         self.model = model
-        self.equilibrium = equilibrium
-        self.converged = bool(equilibrium.converged)
-        self.newton_iterations = int(equilibrium.iterations)
-        self.residual_norm = float(equilibrium.residual_norm)
-        self.load_level = float(equilibrium.load_level)
+        self.raw = raw
+        self.converged = bool(raw.converged)
+        self.newton_iterations = int(np.sum(raw.iterations))
         self.wall_time_s = wall_time_s
         self.compile_time_s = compile_time_s
-        self.time = None
-        self._R = np.asarray(equilibrium.R)
-        self._p = np.asarray(equilibrium.p)
+        if isinstance(raw, Trajectory):
+            self.time = np.asarray(raw.time)
+            self.residual_norm = self.load_level = None
+            self.failed_at = None if self.converged else float(raw.failed_at)
+        else:
+            self.time = None
+            self.residual_norm = float(raw.residual_norm)
+            self.load_level = float(raw.load_level)
+            self.failed_at = None
+        self._R = np.asarray(raw.R)
+        self._p = np.asarray(raw.p)
 
     def _nodes(self, rod: str) -> slice:
         info = self.model.structure.rod(rod)
         return slice(info.first_node, info.first_node + info.nodes)
 
     def positions(self, rod: str) -> np.ndarray:
-        """Node positions of ``rod`` in world coordinates (m), shape (nodes, 3)."""
-        return self._p[self._nodes(rod)].copy()
+        """Node positions of ``rod`` in world coordinates (m): (nodes, 3), or
+        (T, nodes, 3) for dynamic results."""
+        return self._p[..., self._nodes(rod), :].copy()
 
     def rotations(self, rod: str) -> np.ndarray:
-        """Section frames of ``rod`` (nodes, 3, 3); columns are the local axes in world."""
-        return self._R[self._nodes(rod)].copy()
+        """Section frames of ``rod``: (nodes, 3, 3) or (T, nodes, 3, 3); columns are the
+        local axes in world coordinates."""
+        return self._R[..., self._nodes(rod), :, :].copy()
 
     def to_dict(self) -> dict:
         """The result-file layout of the scene-format contract (plain Python types)."""
@@ -79,9 +90,12 @@ class Result:
              "rods": {r.name: {"positions": self.positions(r.name).tolist(),
                                "rotations": self.rotations(r.name).tolist()}
                       for r in self.model.structure.rods}}
+        if self.time is not None:
+            d["time"] = self.time.tolist()
         if not self.converged:
-            d["failed_at"] = {"load_level": self.load_level,
-                              "residual_norm": self.residual_norm}
+            d["failed_at"] = ({"time": self.failed_at} if self.time is not None else
+                              {"load_level": self.load_level,
+                               "residual_norm": self.residual_norm})
         return d
 
     def save(self, path) -> Path:
@@ -103,20 +117,43 @@ class Result:
         return path
 
 
+def dynamic_settings_from_scene(solver) -> DynamicSettings:
+    """DynamicSettings from a scene's ``[solver]`` table (steps = round(t_end / dt))."""
+    steps = int(round(solver.t_end / solver.dt))
+    save_every = min(int(solver.save_every), steps)
+    return DynamicSettings(dt=float(solver.dt), steps=steps - steps % save_every,
+                           rho_inf=float(solver.rho_inf), save_every=save_every)
+
+
+def _run_dynamic(scene: Scene, model: Model) -> Result:
+    dyn = build_dynamics(model, scene)
+    settings = dynamic_settings_from_scene(scene.solver)
+    damped = bool(np.any(np.asarray(model.viscosity) != 0.0))
+    key = ("dynamic", model.structure, settings, damped, dyn.inertia_kind, dyn.drive_nodes,
+           dyn.channels.kinds, dyn.drive_times.shape, dyn.channels.table_t.shape)
+    start = time.perf_counter()
+    if key not in _COMPILED:
+        _COMPILED[key] = simulate.lower(model, dyn, settings, damped=damped).compile()
+    compile_time = time.perf_counter() - start
+    start = time.perf_counter()
+    trajectory = jax.block_until_ready(_COMPILED[key](model, dyn))
+    return Result(scene, model, trajectory, time.perf_counter() - start, compile_time)
+
+
 def run(scene) -> Result:
     """Solve a scene (a :class:`Scene`, a dict or a path to a .toml/.json file).
 
-    Static scenes are solved by :func:`~simsoft_jax.statics.solve_static`. Dynamic scenes
-    raise ``NotImplementedError`` until the dynamics module lands.
+    Static scenes: :func:`~simsoft_jax.statics.solve_static` at full load. Dynamic scenes:
+    :func:`~simsoft_jax.dynamics.simulate` from t = 0 for round(t_end/dt) steps, keeping
+    every ``save_every``-th state. Compilation is cached per model structure.
     """
     if isinstance(scene, (str, Path)):
         scene = load_scene(scene)
     elif isinstance(scene, dict):
         scene = Scene.from_dict(scene)
-    if scene.solver.kind != "static":
-        raise NotImplementedError("solver.kind: dynamic scenes are not supported yet "
-                                  "(only static solves are implemented)")
     model = build_model(scene)
+    if scene.solver.kind == "dynamic":
+        return _run_dynamic(scene, model)
     settings = settings_from_scene(scene.solver)
     solver, compile_time = compiled_static_solver(model, settings)
     start = time.perf_counter()

@@ -1,0 +1,460 @@
+"""Lie-group generalized-alpha time integration (spec algorithm.md section 4).
+
+Unknowns per step: the nodal increments ``w = h Delta q`` (N,6); everything else is
+eliminated (spec S66): ``a(w) = (w/h - v_n - (1/2 - beta) h a_n)/(beta h)``,
+``v(w) = v_n + (1 - gamma) h a_n + gamma h a(w)``,
+``vdot(w) = ((1 - alpha_m) a(w) + alpha_m a_n - alpha_f vdot_n)/(1 - alpha_f)``,
+``q_{n+1} = q_n o exp(w)`` (S54). Newton on ``F(w) = r(q(w), v(w), vdot(w), t_{n+1})``
+with the exact iteration matrix ``M beta' + C_t gamma' + K_t T_SE3(w)`` (S61, S66) built
+from per-element ``jacfwd`` blocks (block-tridiagonal). Parameters from rho_inf (S53).
+Held dofs (clamps, pins, drives) are eliminated: their ``w`` is prescribed (spec 4.5).
+A step whose Newton solve fails is retried with halved sub-steps before the run stops
+and reports where. Rollouts are ``lax.scan``; gradients go through each step's Newton
+solve by the implicit function theorem (``differentiable=True``, see :func:`simulate`).
+"""
+from __future__ import annotations
+
+import dataclasses
+from functools import partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import element, inertia, lie
+from .assembly import _nodal_load, apply_constraints, block_matvec, block_solve, block_transpose
+from .loads import LoadChannels, build_channels, loaded_model
+from .model import Model
+
+
+class DynamicSettings(NamedTuple):
+    """Static settings of a rollout (hashable). dt (s); steps: number of time steps;
+    rho_inf in [0, 1]; save_every: keep every k-th state; tolerance: Newton stops when the
+    largest nodal correction is below it (translations / char_length, rotations in rad);
+    max_halvings: sub-stepping depth before a step is declared failed."""
+    dt: float
+    steps: int
+    rho_inf: float = 0.9
+    save_every: int = 1
+    tolerance: float = 1e-10
+    max_iterations: int = 25
+    max_halvings: int = 6
+
+
+def alpha_parameters(rho_inf: float):
+    """``(alpha_m, alpha_f, gamma, beta)`` of the generalized-alpha scheme (spec S53)."""
+    alpha_m = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
+    alpha_f = rho_inf / (rho_inf + 1.0)
+    gamma = 0.5 + alpha_f - alpha_m
+    return alpha_m, alpha_f, gamma, 0.25 * (gamma + 0.5) ** 2
+
+
+@dataclasses.dataclass(frozen=True)
+class Dynamics:
+    """Dynamic data of a scene beyond the Model. maps (E,G,6,12), masses (E,12,12):
+    element inertia (see :mod:`simsoft_jax.inertia`); channels: time-dependent loads;
+    v0 (N,6): initial nodal body velocities; drive_times (D,S), drive_displacement (D,S,3),
+    drive_rotation (D,S,3): drive tables (world frame, relative to the start pose).
+    Static: inertia_kind, drive_nodes (tuple of node indices)."""
+    maps: jax.Array
+    masses: jax.Array
+    channels: LoadChannels
+    v0: jax.Array
+    drive_times: jax.Array
+    drive_displacement: jax.Array
+    drive_rotation: jax.Array
+    inertia_kind: str = "consistent"
+    drive_nodes: tuple = ()
+
+
+jax.tree_util.register_dataclass(
+    Dynamics, data_fields=["maps", "masses", "channels", "v0", "drive_times",
+                           "drive_displacement", "drive_rotation"],
+    meta_fields=["inertia_kind", "drive_nodes"])
+
+
+class State(NamedTuple):
+    """Nodal frames R (N,3,3), p (N,3); body velocities v, accelerations vd and the
+    generalized-alpha pseudo-acceleration a (N,6); time t (s)."""
+    R: jax.Array
+    p: jax.Array
+    v: jax.Array
+    vd: jax.Array
+    a: jax.Array
+    t: jax.Array
+
+
+class Trajectory(NamedTuple):
+    """Saved states (every save_every steps, the initial one first): time (T,), R (T,N,3,3),
+    p (T,N,3), v (T,N,6). converged: every step converged; failed_at: time of the first
+    failed step (nan if none); iterations (steps,): Newton iterations per step (all
+    sub-steps); substeps (steps,); final: the last State."""
+    time: jax.Array
+    R: jax.Array
+    p: jax.Array
+    v: jax.Array
+    converged: jax.Array
+    failed_at: jax.Array
+    iterations: jax.Array
+    substeps: jax.Array
+    final: State
+
+
+# ------------------------------------------------------------------------------ building
+
+def build_dynamics(model: Model, scene, inertia_kind: str | None = None) -> Dynamics:
+    """Inertia, load channels, initial velocities and drives of a dynamic scene."""
+    kind = inertia_kind or getattr(scene.solver, "inertia", "consistent")
+    maps, masses = inertia.element_inertia(model.d0, model.length, model.inertia, kind)
+    s = model.structure
+    rods = {r.name: r for r in s.rods}
+    R0, p0 = np.asarray(model.R0), np.asarray(model.p0)
+    v0 = np.zeros((s.n_nodes, 6))
+    for iv in scene.initial_velocity:
+        info = rods[iv.rod]
+        base = p0[info.first_node]
+        for i in range(info.first_node, info.first_node + info.nodes):
+            v_world = iv.linear + np.cross(iv.angular, p0[i] - base)
+            v0[i] = np.concatenate([R0[i].T @ v_world, R0[i].T @ iv.angular])
+    drives = [c for c in scene.constraints if c.kind == "drive"]
+    for c in drives:
+        if c.slides_along is not None:
+            raise ValueError(f"constraints: drive on rod {c.rod!r} node {c.node}: "
+                             "slides_along is not supported by the dynamics solver yet")
+    width = max([1] + [len(c.times) for c in drives])
+
+    def hold_last(values):  # pad a (S, ...) table to width rows, holding the last row
+        return np.concatenate([values, np.repeat(values[-1:], width - len(values), axis=0)])
+
+    k = len(drives)
+    times = np.array([np.concatenate([c.times, c.times[-1] + 1.0 + np.arange(width - len(c.times))])
+                      for c in drives]).reshape(k, width)
+    disp = np.array([hold_last(c.displacement) for c in drives]).reshape(k, width, 3)
+    rot = np.array([hold_last(c.rotation) for c in drives]).reshape(k, width, 3)
+    nodes = tuple(rods[c.rod].first_node + c.node for c in drives)
+    f64 = lambda a: jnp.asarray(a, jnp.float64)  # noqa: E731
+    return Dynamics(maps, masses, build_channels(scene, s), f64(v0), f64(times), f64(disp),
+                    f64(rot), kind, nodes)
+
+
+def drive_poses(model: Model, dyn: Dynamics, t):
+    """Prescribed frames (D,3,3), (D,3) of the driven nodes at time ``t``."""
+    interp = jax.vmap(lambda tt, vals: jax.vmap(lambda col: jnp.interp(t, tt, col),
+                                                in_axes=1)(vals))
+    disp = interp(dyn.drive_times, dyn.drive_displacement)
+    rot = interp(dyn.drive_times, dyn.drive_rotation)
+    idx = jnp.asarray(dyn.drive_nodes, int)
+    R = jnp.einsum("dij,djk->dik", jax.vmap(lie.exp_so3)(rot), model.R0[idx])
+    return R, model.p0[idx] + disp
+
+
+# ------------------------------------------------------------------------------ residual
+
+def _element_args(model: Model, dyn: Dynamics, R, p, v, vd):
+    a = jnp.asarray(model.structure.element_nodes)
+    d = jax.vmap(element.relative_twist)(R[a], p[a], R[a + 1], p[a + 1])
+    ve = jnp.concatenate([v[a], v[a + 1]], axis=1)
+    vde = jnp.concatenate([vd[a], vd[a + 1]], axis=1)
+    return (R[a], d, ve, vde, dyn.maps, dyn.masses, model.d0, model.length, model.stiffness,
+            model.inertia, model.viscosity, model.distributed_world, model.distributed_local)
+
+
+def _element_residual(model: Model, dyn: Dynamics, damped: bool):
+    """Dynamic element residual (12,): inertia + gyroscopic + elastic + viscous - loads."""
+    s = model.structure
+    use_world = s.has_gravity or s.has_distributed_world
+    use_local = s.has_distributed_local
+
+    def residual(RA, d, ve, vde, maps, mass, d0, length, stiffness, inert, visc, qw, ql):
+        P = element.strain_map(d)
+        r = mass @ vde + inertia.gyroscopic_force(maps, length, inert, ve, dyn.inertia_kind)
+        r = r + element.internal_force(P, d, d0, length, stiffness)
+        if damped:
+            r = r + element.viscous_force(P, ve, length, visc)
+        if use_world or use_local:
+            world = (qw + inert[0] * model.gravity) if use_world else jnp.zeros(3)
+            local = ql if use_local else jnp.zeros(3)
+            r = r - element.distributed_force(RA, d, P, length, world, local)
+        return r
+
+    return residual
+
+
+def dynamic_residual(model: Model, dyn: Dynamics, R, p, v, vd, damped: bool):
+    """Global dynamic residual (N,6) (spec S47), held dofs zeroed."""
+    s = model.structure
+    a = jnp.asarray(s.element_nodes)
+    f = jax.vmap(_element_residual(model, dyn, damped))(*_element_args(model, dyn, R, p, v, vd))
+    r = jnp.zeros((s.n_nodes, 6)).at[a].add(f[:, :6]).at[a + 1].add(f[:, 6:])
+    if s.has_nodal_dead or s.has_nodal_follower:
+        r = r + jax.vmap(_nodal_load(model, 1.0))(R, model.nodal_dead, model.nodal_follower)
+    return r * s.free_mask()
+
+
+def residual_and_iteration_matrix(model, dyn, R, p, v, vd, w, beta_p, gamma_p, damped):
+    """Residual (N,6) and block-tridiagonal ``M beta' + C_t gamma' + K_t T(w)`` (S61, S66)."""
+    s = model.structure
+    n = s.n_nodes
+    a = jnp.asarray(s.element_nodes)
+    elem = _element_residual(model, dyn, damped)
+    T = jax.vmap(lie.tangent_se3)(w)
+
+    def value_and_blocks(RA, d, ve, vde, maps, mass, *data):
+        P = element.strain_map(d)
+
+        def f(x):  # chart of spec S37 for the frames, plus velocity perturbations
+            return elem(RA @ lie.exp_so3(x[3:6]), d + P @ x[:12], ve + x[12:], vde, maps,
+                        mass, *data)
+
+        jac, val = jax.jacfwd(lambda x: (f(x),) * 2, has_aux=True)(jnp.zeros(24))
+        return val, jac[:, :12], jac[:, 12:], mass
+
+    f_el, K_el, C_el, M_el = jax.vmap(value_and_blocks)(*_element_args(model, dyn, R, p, v, vd))
+    TA, TB = T[a], T[a + 1]
+    K_el = jnp.concatenate([K_el[:, :, :6] @ TA, K_el[:, :, 6:] @ TB], axis=2)
+    S_el = M_el * beta_p + C_el * gamma_p + K_el
+    r = jnp.zeros((n, 6)).at[a].add(f_el[:, :6]).at[a + 1].add(f_el[:, 6:])
+    diag = jnp.zeros((n, 6, 6)).at[a].add(S_el[:, :6, :6]).at[a + 1].add(S_el[:, 6:, 6:])
+    upper = jnp.zeros((max(n - 1, 0), 6, 6)).at[a].set(S_el[:, :6, 6:])
+    lower = jnp.zeros((max(n - 1, 0), 6, 6)).at[a].set(S_el[:, 6:, :6])
+    if s.has_nodal_dead or s.has_nodal_follower:
+        load = _nodal_load(model, 1.0)
+
+        def node_value_and_jac(R_i, dead, follower):
+            g = lambda x: load(R_i @ lie.exp_so3(x[3:]), dead, follower)  # noqa: E731
+            jac, val = jax.jacfwd(lambda x: (g(x),) * 2, has_aux=True)(jnp.zeros(6))
+            return val, jac
+
+        f_n, k_n = jax.vmap(node_value_and_jac)(R, model.nodal_dead, model.nodal_follower)
+        r = r + f_n
+        diag = diag + k_n @ T
+    return apply_constraints(s.free_mask(), r, (diag, upper, lower))
+
+
+# ------------------------------------------------------------------------------ one step
+
+def _fields(settings: DynamicSettings, state: State, w, h):
+    """``a, v, vdot`` of the new state as functions of ``w`` (spec S66)."""
+    alpha_m, alpha_f, gamma, beta = alpha_parameters(settings.rho_inf)
+    a1 = (w / h - state.v - (0.5 - beta) * h * state.a) / (beta * h)
+    v1 = state.v + (1.0 - gamma) * h * state.a + gamma * h * a1
+    vd1 = ((1.0 - alpha_m) * a1 + alpha_m * state.a - alpha_f * state.vd) / (1.0 - alpha_f)
+    return a1, v1, vd1
+
+
+def _held_increments(model: Model, dyn: Dynamics, state: State, t1):
+    """Prescribed ``w`` of held dofs: 0 for clamps and pins, ``log(H_n^-1 H_c(t))`` for drives."""
+    w = jnp.zeros_like(state.v)
+    if dyn.drive_nodes:
+        idx = jnp.asarray(dyn.drive_nodes, int)
+        Rc, pc = drive_poses(model, dyn, t1)
+        wd = jax.vmap(lambda Ra, pa, Rb, pb: lie.log_se3(lie.relative_pose(Ra, pa, Rb, pb)))(
+            state.R[idx], state.p[idx], Rc, pc)
+        w = w.at[idx].set(wd)
+    return w
+
+
+def _step_functions(model, dyn, settings, state, h, damped):
+    """F(w) pieces for one step of size h from ``state``."""
+    _, _, gamma, beta = alpha_parameters(settings.rho_inf)
+    alpha_m, alpha_f = alpha_parameters(settings.rho_inf)[:2]
+    beta_p = (1.0 - alpha_m) / (h * h * beta * (1.0 - alpha_f))
+    gamma_p = gamma / (h * beta)
+    t1 = state.t + h
+    loaded = loaded_model(model, dyn.channels, t1)
+
+    def new_state(w):
+        a1, v1, vd1 = _fields(settings, state, w, h)
+        R1, p1 = jax.vmap(lie.compose_exp)(state.R, state.p, w)
+        return State(R1, p1, v1, vd1, a1, t1)
+
+    def residual(w):
+        s1 = new_state(w)
+        return dynamic_residual(loaded, dyn, s1.R, s1.p, s1.v, s1.vd, damped)
+
+    def residual_and_matrix(w):
+        s1 = new_state(w)
+        return residual_and_iteration_matrix(loaded, dyn, s1.R, s1.p, s1.v, s1.vd, w,
+                                             beta_p, gamma_p, damped)
+
+    return new_state, residual, residual_and_matrix, t1
+
+
+def _newton_step(model, dyn, settings, state, h, damped):
+    """Newton on F(w) = 0 (spec S66). Returns (w, iterations, converged)."""
+    _, _, gamma, beta = alpha_parameters(settings.rho_inf)
+    alpha_m, alpha_f = alpha_parameters(settings.rho_inf)[:2]
+    _, _, residual_and_matrix, t1 = _step_functions(model, dyn, settings, state, h, damped)
+    mask = model.structure.free_mask()
+    # predictor (S60)
+    a1 = (alpha_f * state.vd - alpha_m * state.a) / (1.0 - alpha_m)
+    w0 = h * (state.v + (0.5 - beta) * h * state.a + beta * h * a1)
+    w0 = jnp.where(mask > 0, w0, _held_increments(model, dyn, state, t1))
+
+    def body(c):
+        w, it, _, _ = c
+        r, blocks = residual_and_matrix(w)
+        dw = -block_solve(blocks, r)
+        size = jnp.max(jnp.maximum(jnp.linalg.norm(dw[:, :3], axis=1) / model.char_length,
+                                   jnp.linalg.norm(dw[:, 3:], axis=1)))
+        finite = jnp.all(jnp.isfinite(dw))
+        w_new = w + jnp.where(finite, dw, 0.0)
+        converged = finite & (size <= settings.tolerance)
+        failed = ~finite | (it + 1 >= settings.max_iterations) | (
+            jnp.max(jnp.linalg.norm(w_new[:, 3:], axis=1)) > 0.5 * jnp.pi)
+        return w_new, it + 1, converged, failed & ~converged
+
+    w, it, ok, _ = jax.lax.while_loop(lambda c: ~(c[2] | c[3]), body,
+                                      (w0, jnp.array(0), jnp.array(False), jnp.array(False)))
+    return w, it, ok
+
+
+@partial(jax.custom_jvp, nondiff_argnums=(0, 1))
+def _implicit_increment(settings, damped, model, dyn, state, h, w):
+    """Identity on a converged step increment ``w``; its derivative is the implicit-function
+    one: ``dw_free = -J^-1 dF`` with the held dofs following the prescribed motion."""
+    return w
+
+
+@_implicit_increment.defjvp
+def _implicit_increment_jvp(settings, damped, primals, tangents):
+    model, dyn, state, h, w = primals
+    dmodel, ddyn, dstate, dh, _ = tangents
+    mask = model.structure.free_mask()
+
+    def held(m, dy, st, hh):
+        return _held_increments(m, dy, st, st.t + hh)
+
+    def F(m, dy, st, hh):  # residual with the free w frozen and the held w prescribed
+        _, residual, _, _ = _step_functions(m, dy, settings, st, hh, damped)
+        return residual(jnp.where(mask > 0, w, held(m, dy, st, hh)))
+
+    primal_args, tangent_args = (model, dyn, state, h), (dmodel, ddyn, dstate, dh)
+    _, dF = jax.jvp(F, primal_args, tangent_args)
+    _, dheld = jax.jvp(held, primal_args, tangent_args)
+    _, _, residual_and_matrix, _ = _step_functions(model, dyn, settings, state, h, damped)
+    _, blocks = residual_and_matrix(w)
+    dw = jax.lax.custom_linear_solve(
+        lambda x: block_matvec(blocks, x), -dF,
+        solve=lambda _, b: block_solve(blocks, b),
+        transpose_solve=lambda _, b: block_solve(block_transpose(blocks), b))
+    return w, jnp.where(mask > 0, dw, dheld)
+
+
+def _attempt(model, dyn, settings, state, h, damped, differentiable):
+    """One generalized-alpha step of size h: (new state, iterations, converged)."""
+    new_state = _step_functions(model, dyn, settings, state, h, damped)[0]
+    if differentiable:
+        stopped = jax.lax.stop_gradient((model, dyn, state, h))
+        w, it, ok = _newton_step(stopped[0], stopped[1], settings, stopped[2], stopped[3],
+                                 damped)
+        w = _implicit_increment(settings, damped, model, dyn, state, h, w)
+    else:
+        w, it, ok = _newton_step(model, dyn, settings, state, h, damped)
+    return new_state(w), it, ok
+
+
+def _advance(model, dyn, settings, state, damped):
+    """One macro step of size dt, with sub-stepping on failure (halve, up to max_halvings)."""
+    dt = settings.dt
+    t_target = state.t + dt
+    h_min = dt / 2.0**settings.max_halvings
+
+    def body(c):
+        st, h, its, subs, failed = c
+        h_try = jnp.minimum(h, t_target - st.t)
+        new, it, ok = _attempt(model, dyn, settings, st, h_try, damped, False)
+        keep = lambda a, b: jax.tree_util.tree_map(  # noqa: E731
+            lambda x, y: jnp.where(ok, x, y), a, b)
+        st = keep(new, st)
+        h = jnp.where(ok, jnp.minimum(2.0 * h, dt), 0.5 * h)
+        return st, h, its + it, subs + ok, failed | (h < h_min * (1 - 1e-12))
+
+    def running(c):
+        st, _, _, _, failed = c
+        return (st.t < t_target - 1e-12 * dt) & ~failed
+
+    st, _, its, subs, failed = jax.lax.while_loop(
+        running, body, (state, jnp.asarray(dt), jnp.array(0), jnp.array(0), jnp.array(False)))
+    return st, its, subs, ~failed
+
+
+def initial_state(model: Model, dyn: Dynamics, t0=0.0, damped=None) -> State:
+    """Start state: model.R0/p0, velocities dyn.v0 and consistent accelerations from
+    ``M vdot_0 = -g(q_0, v_0, t_0)`` (spec S67); ``a_0 = vdot_0`` (S68)."""
+    damped = _is_damped(model) if damped is None else damped
+    t0 = jnp.asarray(t0, jnp.float64)
+    loaded = loaded_model(model, dyn.channels, t0)
+    zeros = jnp.zeros_like(dyn.v0)
+    g = dynamic_residual(loaded, dyn, model.R0, model.p0, dyn.v0, zeros, damped)
+    s = model.structure
+    a = jnp.asarray(s.element_nodes)
+    n = s.n_nodes
+    diag = jnp.zeros((n, 6, 6)).at[a].add(dyn.masses[:, :6, :6]).at[a + 1].add(
+        dyn.masses[:, 6:, 6:])
+    upper = jnp.zeros((max(n - 1, 0), 6, 6)).at[a].set(dyn.masses[:, :6, 6:])
+    lower = jnp.zeros((max(n - 1, 0), 6, 6)).at[a].set(dyn.masses[:, 6:, :6])
+    g, blocks = apply_constraints(s.free_mask(), g, (diag, upper, lower))
+    vd0 = -block_solve(blocks, g)
+    return State(model.R0, model.p0, dyn.v0, vd0, vd0, t0)
+
+
+def _is_damped(model: Model) -> bool:
+    try:
+        return bool(np.any(np.asarray(model.viscosity) != 0.0))
+    except jax.errors.TracerArrayConversionError:
+        return True
+
+
+@partial(jax.jit, static_argnames=("settings", "damped", "differentiable"))
+def simulate(model: Model, dyn: Dynamics, settings: DynamicSettings, state: State | None = None,
+             damped: bool = True, differentiable: bool = False) -> Trajectory:
+    """Roll out ``settings.steps`` steps of size ``settings.dt`` (``lax.scan``).
+
+    ``damped=False`` leaves the viscous terms out of the traced program (use it when all
+    viscosities are zero). ``differentiable=True`` makes every step a single Newton solve
+    differentiated by the implicit function theorem (checkpointed scan: memory O(saved
+    states)); a step that fails is then reported (no sub-stepping). Otherwise failed steps
+    are retried with halved sub-steps. After the first failure the state is frozen and
+    ``converged`` is False, ``failed_at`` the time of the failing step.
+    """
+    state = initial_state(model, dyn, damped=damped) if state is None else state
+
+    def step(carry, _):
+        st, failed, failed_at = carry
+        if differentiable:
+            new, its, ok = _attempt(model, dyn, settings, st, settings.dt, damped, True)
+            subs = jnp.array(1)
+        else:
+            new, its, subs, ok = _advance(model, dyn, settings, st, damped)
+        ok = ok & ~failed
+        new = jax.tree_util.tree_map(lambda x, y: jnp.where(ok, x, y), new, st)
+        failed_at = jnp.where(failed | ok, failed_at, st.t)
+        return (new, failed | ~ok, failed_at), (its, subs)
+
+    def save_block(carry, _):
+        carry, (its, subs) = jax.lax.scan(
+            jax.checkpoint(step) if differentiable else step, carry, None,
+            length=settings.save_every)
+        st = carry[0]
+        return carry, (st.t, st.R, st.p, st.v, its, subs)
+
+    n_saves = settings.steps // settings.save_every
+    carry0 = (state, jnp.array(False), jnp.array(jnp.nan))
+    (final, failed, failed_at), (t, R, p, v, its, subs) = jax.lax.scan(
+        save_block, carry0, None, length=n_saves)
+    cat = lambda first, rest: jnp.concatenate([first[None], rest])  # noqa: E731
+    return Trajectory(cat(state.t, t), cat(state.R, R), cat(state.p, p), cat(state.v, v),
+                      ~failed, failed_at, its.reshape(-1), subs.reshape(-1), final)
+
+
+def energy(model: Model, dyn: Dynamics, R, p, v):
+    """Kinetic ``1/2 sum v_e^T M_e v_e`` plus strain energy ``sum (L/2) eps^T K eps`` (J)."""
+    a = jnp.asarray(model.structure.element_nodes)
+    ve = jnp.concatenate([v[a], v[a + 1]], axis=1)
+    kinetic = 0.5 * jnp.einsum("ei,eij,ej->", ve, dyn.masses, ve)
+    d = jax.vmap(element.relative_twist)(R[a], p[a], R[a + 1], p[a + 1])
+    eps = (d - model.d0) / model.length[:, None]
+    strain = 0.5 * jnp.sum(model.length[:, None] * model.stiffness * eps * eps)
+    return kinetic + strain

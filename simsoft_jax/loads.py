@@ -1,0 +1,108 @@
+"""Time laws of loads for dynamics: each scene load is a *channel* ``pattern * scale(t)``.
+
+Profiles (scene-format.md): constant 1; ramp ``clip((t - t0)/(t1 - t0), 0, 1)``;
+smoothstep the same passed through ``3x^2 - 2x^3`` (zero slope at both ends); linear
+``rate * t`` (the seed's f(t) = c t); table: linear interpolation of (t, scale), held
+constant outside the samples. Kinds are static (one compiled branch per channel), all
+numbers are arrays, so new load values or time laws never recompile.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+
+@dataclasses.dataclass(frozen=True)
+class LoadChannels:
+    """K load channels. kinds: static tuple of profile kinds. params (K,3): t0, t1, rate.
+    table_t, table_scale (K, S): padded tables. Patterns: nodal_dead (K,N,6) world,
+    nodal_follower (K,N,6) local, distributed_world / distributed_local (K,E,3)."""
+    kinds: tuple
+    params: jax.Array
+    table_t: jax.Array
+    table_scale: jax.Array
+    nodal_dead: jax.Array
+    nodal_follower: jax.Array
+    distributed_world: jax.Array
+    distributed_local: jax.Array
+
+
+jax.tree_util.register_dataclass(
+    LoadChannels,
+    data_fields=["params", "table_t", "table_scale", "nodal_dead", "nodal_follower",
+                 "distributed_world", "distributed_local"],
+    meta_fields=["kinds"],
+)
+
+
+def profile_scale(kind: str, params, table_t, table_scale, t):
+    """Scale factor of one channel at time ``t`` (s)."""
+    t0, t1, rate = params[0], params[1], params[2]
+    if kind == "constant":
+        return jnp.ones_like(t)
+    if kind == "linear":
+        return rate * t
+    if kind == "table":
+        return jnp.interp(t, table_t, table_scale)
+    x = jnp.clip((t - t0) / (t1 - t0), 0.0, 1.0)
+    if kind == "ramp":
+        return x
+    if kind == "smoothstep":
+        return x * x * (3.0 - 2.0 * x)
+    raise ValueError(f"profile.kind: unknown kind {kind!r}")
+
+
+def scales(channels: LoadChannels, t):
+    """Scale factors (K,) of all channels at time ``t``."""
+    return jnp.stack([profile_scale(k, channels.params[i], channels.table_t[i],
+                                    channels.table_scale[i], t)
+                      for i, k in enumerate(channels.kinds)]) if channels.kinds else jnp.zeros(0)
+
+
+def loaded_model(model, channels: LoadChannels, t):
+    """``model`` with its load tables replaced by the channel sums at time ``t``."""
+    s = scales(channels, t)
+    combine = lambda pattern: jnp.tensordot(s, pattern, axes=1)  # noqa: E731
+    return model.replace(nodal_dead=combine(channels.nodal_dead),
+                         nodal_follower=combine(channels.nodal_follower),
+                         distributed_world=combine(channels.distributed_world),
+                         distributed_local=combine(channels.distributed_local))
+
+
+def build_channels(scene, structure) -> LoadChannels:
+    """One channel per scene load, with its pattern at unit scale."""
+    n, e = structure.n_nodes, structure.n_elements
+    k = len(scene.loads)
+    rods = {r.name: r for r in structure.rods}
+    dead, follower = np.zeros((k, n, 6)), np.zeros((k, n, 6))
+    dist_world, dist_local = np.zeros((k, e, 3)), np.zeros((k, e, 3))
+    params = np.tile([0.0, 1.0, 0.0], (max(k, 0), 1))
+    width = max([2] + [len(ld.profile.t) for ld in scene.loads if ld.profile.kind == "table"])
+    table_t = np.tile(np.arange(width, dtype=float), (k, 1))
+    table_scale = np.zeros((k, width))
+    for i, load in enumerate(scene.loads):
+        info = rods[load.rod]
+        if load.kind == "distributed_force":
+            target = dist_world if load.frame == "world" else dist_local
+            target[i, info.first_element:info.first_element + info.elements] = load.vector
+        else:
+            target = dead if load.frame == "world" else follower
+            cols = slice(0, 3) if load.kind == "force" else slice(3, 6)
+            target[i, info.first_node + load.node, cols] = load.vector
+        prof = load.profile
+        if prof.kind in ("ramp", "smoothstep"):
+            params[i, :2] = prof.t0, prof.t1
+        elif prof.kind == "linear":
+            params[i, 2] = prof.rate
+        elif prof.kind == "table":
+            m = len(prof.t)
+            # pad with increasing times beyond the last sample, holding the last value
+            table_t[i] = np.concatenate([prof.t, prof.t[-1] + 1.0 + np.arange(width - m)])
+            table_scale[i] = np.concatenate([prof.scale, np.full(width - m, prof.scale[-1])])
+    f64 = lambda a: jnp.asarray(a, jnp.float64)  # noqa: E731
+    return LoadChannels(tuple(ld.profile.kind for ld in scene.loads), f64(params),
+                        f64(table_t), f64(table_scale), f64(dead), f64(follower),
+                        f64(dist_world), f64(dist_local))
