@@ -23,7 +23,8 @@ import jax as _jax
 
 _jax.config.update("jax_enable_x64", True)
 
-from . import kinematics, lie  # noqa: E402
+from . import assembly, dynamics, element, kinematics, lie  # noqa: E402
+from .dynamics import DynamicSettings, Trajectory, build_dynamics, simulate  # noqa: E402
 from .materials import BUILTIN_MATERIALS, Material, get_material  # noqa: E402
 from .model import Model, Structure, build_model  # noqa: E402
 from .results import Result, run  # noqa: E402
@@ -34,7 +35,8 @@ from .sections import (Section, circle, custom_inertia, custom_stiffness,  # noq
 from .statics import Equilibrium, StaticSettings, solve_static  # noqa: E402
 
 __all__ = [
-    "BUILTIN_MATERIALS", "Equilibrium", "Material", "Model", "Result", "Scene", "Section",
+    "BUILTIN_MATERIALS", "DynamicSettings", "Equilibrium", "Trajectory", "assembly",
+    "build_dynamics", "dynamics", "element", "simulate", "Material", "Model", "Result", "Scene", "Section",
     "StaticSettings", "Structure", "build_model", "circle", "custom_inertia",
     "custom_stiffness", "get_material", "inertia_diagonal", "kinematics", "lie",
     "load_scene", "rectangle", "run", "save_scene", "semicircle", "solve_static",

@@ -129,11 +129,15 @@ def _initial_frames(rod, R_ref, p_ref):
     return np.einsum("ij,njk->nik", Rb, R), pb + p @ Rb.T
 
 
+@jax.jit
+def _consecutive_twists(R, p):
+    return jax.vmap(lambda RA, pA, RB, pB: lie.log_se3(lie.relative_pose(RA, pA, RB, pB)))(
+        R[:-1], p[:-1], R[1:], p[1:])
+
+
 def _reference_twists(R, p):
     """``d0_e = log(H_e^-1 H_e+1)`` for consecutive frames (spec S34), (n,6)."""
-    R, p = jnp.asarray(R), jnp.asarray(p)
-    return np.asarray(jax.vmap(lambda RA, pA, RB, pB: lie.log_se3(
-        lie.relative_pose(RA, pA, RB, pB)))(R[:-1], p[:-1], R[1:], p[1:]))
+    return np.asarray(_consecutive_twists(jnp.asarray(R), jnp.asarray(p)))
 
 
 def _check_held(scene):
