@@ -335,7 +335,9 @@ def test_derivatives_finite_and_correct_near_zero(name):
     points = [np.zeros(n), 1e-12 * d, 1e-7 * d] + ([np.r_[0.3, -1.0, 2.0, 0, 0, 0]] if n == 6 else [])
     W = jnp.asarray(r.normal(size=np.shape(fn(jnp.zeros(n)))))  # fixed random linear functional
     lin = lambda x: jnp.sum(W * fn(x))
-    derivs = jax.jit(lambda x: (jax.jacfwd(fn)(x), jax.jacrev(fn)(x), jax.hessian(lin)(x)))
+    # compile-time dominated (~75% of this file): LLVM opt level 0 compiles ~25% faster, same semantics
+    derivs = jax.jit(lambda x: (jax.jacfwd(fn)(x), jax.jacrev(fn)(x), jax.hessian(lin)(x)),
+                     compiler_options={"xla_backend_optimization_level": 0})
     for x in points:
         Jf, Jr, Hl = D = [np.asarray(M) for M in derivs(jnp.asarray(x))]
         for M in D:
