@@ -26,6 +26,7 @@ from . import element, inertia, lie
 from .assembly import _nodal_load, apply_constraints, block_matvec, block_solve, block_transpose
 from .loads import LoadChannels, build_channels, loaded_model
 from .model import Model
+from .statics import step_norm
 
 
 class DynamicSettings(NamedTuple):
@@ -296,8 +297,7 @@ def _newton_step(model, dyn, settings, state, h, damped):
         w, it, _, _ = c
         r, blocks = residual_and_matrix(w)
         dw = -block_solve(blocks, r)
-        size = jnp.max(jnp.maximum(jnp.linalg.norm(dw[:, :3], axis=1) / model.char_length,
-                                   jnp.linalg.norm(dw[:, 3:], axis=1)))
+        size = step_norm(model, dw)
         finite = jnp.all(jnp.isfinite(dw))
         w_new = w + jnp.where(finite, dw, 0.0)
         converged = finite & (size <= settings.tolerance)

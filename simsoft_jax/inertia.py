@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import element, lie
+from . import element
 
 _GAUSS4_X, _GAUSS4_W = np.polynomial.legendre.leggauss(4)
 RULES = {
@@ -38,18 +38,21 @@ def field_maps(d0, kind: str):
 
 def mass_matrix(maps, length, inertia, kind: str):
     """Constant element mass matrix (12,12) from the field maps (spec I2 / I4)."""
-    _, weights = RULES[kind]
-    return sum(w * length * N.T @ (inertia[:, None] * N) for w, N in zip(weights, maps))
+    weights = jnp.asarray(RULES[kind][1]) * length
+    return jnp.einsum("g,gai,a,gaj->ij", weights, maps, inertia, maps)
 
 
 def gyroscopic_force(maps, length, inertia, velocities, kind: str):
-    """Gyroscopic element force (12,) ``-sum w L N0^T ad_u^T M u`` (spec S46 per point)."""
-    _, weights = RULES[kind]
-    total = jnp.zeros(12)
-    for w, N in zip(weights, maps):
-        u = N @ velocities
-        total = total - w * length * N.T @ (lie.ad_se3(u).T @ (inertia * u))
-    return total
+    """Gyroscopic element force (12,) ``-sum w L N0^T ad_u^T M u`` (spec S46 per point).
+
+    For diagonal ``M``: ``-ad_u^T M u = [m w x v; w x (J w)]`` (spec S46)."""
+    weights = jnp.asarray(RULES[kind][1]) * length
+    u = maps @ velocities                      # (G, 6) section velocities
+    mu = inertia * u
+    g = -jnp.concatenate([jnp.cross(mu[:, :3], u[:, 3:]),
+                          jnp.cross(mu[:, :3], u[:, :3]) + jnp.cross(mu[:, 3:], u[:, 3:])],
+                         axis=1)
+    return jnp.einsum("g,gai,ga->i", weights, maps, g)
 
 
 def element_inertia(d0, length, inertia, kind: str):

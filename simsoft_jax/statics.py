@@ -59,18 +59,12 @@ class Equilibrium(NamedTuple):
     step_failures: jax.Array
 
 
-def _weights(model: Model):
-    ell = model.char_length
-    return jnp.array([1.0, 1.0, 1.0]), jnp.array([1.0, 1.0, 1.0]) / ell
-
-
 def _weighted_norm(model, r):
     """Unit-consistent norm: forces in N, moments divided by ``char_length`` (spec 4.7.9)."""
-    wf, wm = _weights(model)
-    return jnp.sqrt(jnp.sum((r[:, :3] * wf) ** 2) + jnp.sum((r[:, 3:] * wm) ** 2))
+    return jnp.sqrt(jnp.sum(r[:, :3] ** 2) + jnp.sum((r[:, 3:] / model.char_length) ** 2))
 
 
-def _step_norm(model, dx):
+def step_norm(model, dx):
     """Largest nodal increment: translation / char_length and rotation (rad)."""
     trans = jnp.linalg.norm(dx[:, :3], axis=1) / model.char_length
     rot = jnp.linalg.norm(dx[:, 3:], axis=1)
@@ -132,7 +126,7 @@ def _newton(model: Model, settings: StaticSettings, R, p, lam, ref):
         converged = accept & (res <= tol)
         # the next Newton step is below step_tolerance: the state is that accurate, even
         # where round-off keeps the residual above tol (stiff axial terms, spec (S64))
-        stalled = accept & (_step_norm(model, dx) <= settings.step_tolerance)
+        stalled = accept & (step_norm(model, dx) <= settings.step_tolerance)
         base_R = jnp.where(accept, c["R"], c["base_R"])
         base_p = jnp.where(accept, c["p"], c["base_p"])
         dx = jnp.where(accept, dx, c["dx"])
