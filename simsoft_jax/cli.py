@@ -7,11 +7,16 @@ import sys
 
 def _run(args) -> int:
     from .results import run
+    def progress(t, t_end):
+        print(f"\r  t = {t:.4g} / {t_end:.4g} s", end="", file=sys.stderr, flush=True)
+
     try:
-        result = run(args.scene)
+        result = run(args.scene, progress=progress)
     except (ValueError, NotImplementedError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    if result.time is not None:
+        print(file=sys.stderr)  # end the progress line
     if args.output:
         result.save(args.output)
     if result.converged:

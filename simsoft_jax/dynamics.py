@@ -458,3 +458,53 @@ def energy(model: Model, dyn: Dynamics, R, p, v):
     eps = (d - model.d0) / model.length[:, None]
     strain = 0.5 * jnp.sum(model.length[:, None] * model.stiffness * eps * eps)
     return kinetic + strain
+
+
+_initial_state = jax.jit(initial_state, static_argnames="damped")
+
+
+def _chunk_saves(total_saves: int, save_every: int, target_steps: int = 200) -> int:
+    """Largest divisor of ``total_saves`` whose chunk has at most ~target_steps steps."""
+    limit = max(1, target_steps // save_every)
+    return max(k for k in range(1, min(total_saves, limit) + 1) if total_saves % k == 0)
+
+
+def rollout(model: Model, dyn: Dynamics, dt: float, t_end: float, rho_inf: float = 0.9,
+            save_every: int = 1, damped: bool | None = None, progress=None, compiled=None):
+    """Run from the initial state to ``t_end`` in compiled chunks of the same length.
+
+    Any ``t_end`` reuses one compiled chunk (no recompilation for longer runs or new
+    numbers); ``progress(t, t_end)`` is called after every chunk; the run stops at the
+    first failed step. ``compiled`` may be a dict used as a cache of compiled chunks.
+    Returns ``(Trajectory, compile_seconds)`` with all saved states concatenated.
+    """
+    import time as _time
+
+    damped = _is_damped(model) if damped is None else damped
+    total_saves = max(1, int(round(t_end / dt)) // save_every)
+    per_chunk = _chunk_saves(total_saves, save_every)
+    settings = DynamicSettings(dt=float(dt), steps=per_chunk * save_every,
+                               rho_inf=float(rho_inf), save_every=save_every)
+    compiled = {} if compiled is None else compiled
+    key = (model.structure, settings, damped, jax.tree_util.tree_structure(dyn),
+           tuple(x.shape for x in jax.tree_util.tree_leaves(dyn)))
+    start = _time.perf_counter()
+    state = jax.block_until_ready(_initial_state(model, dyn, damped=damped))
+    if key not in compiled:
+        compiled[key] = simulate.lower(model, dyn, settings, state, damped=damped).compile()
+    compile_seconds = _time.perf_counter() - start
+    chunks = []
+    for _ in range(total_saves // per_chunk):
+        traj = compiled[key](model, dyn, state)
+        chunks.append(traj if not chunks else traj._replace(
+            time=traj.time[1:], R=traj.R[1:], p=traj.p[1:], v=traj.v[1:]))
+        state = traj.final
+        if progress is not None:
+            progress(float(state.t), t_end)
+        if not bool(traj.converged):
+            break
+    cat = lambda name: jnp.concatenate([getattr(c, name) for c in chunks])  # noqa: E731
+    failed = [c for c in chunks if not bool(c.converged)]
+    return Trajectory(cat("time"), cat("R"), cat("p"), cat("v"), jnp.asarray(not failed),
+                      failed[0].failed_at if failed else jnp.asarray(jnp.nan),
+                      cat("iterations"), cat("substeps"), state), compile_seconds

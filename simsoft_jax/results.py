@@ -14,7 +14,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from .dynamics import DynamicSettings, Trajectory, build_dynamics, simulate
+from .dynamics import Trajectory, build_dynamics, rollout
 from .model import Model, build_model
 from .scene import Scene, load_scene
 from .statics import settings_from_scene, solve_static
@@ -117,35 +117,24 @@ class Result:
         return path
 
 
-def dynamic_settings_from_scene(solver) -> DynamicSettings:
-    """DynamicSettings from a scene's ``[solver]`` table (steps = round(t_end / dt))."""
-    steps = int(round(solver.t_end / solver.dt))
-    save_every = min(int(solver.save_every), steps)
-    return DynamicSettings(dt=float(solver.dt), steps=steps - steps % save_every,
-                           rho_inf=float(solver.rho_inf), save_every=save_every)
-
-
-def _run_dynamic(scene: Scene, model: Model) -> Result:
+def _run_dynamic(scene: Scene, model: Model, progress=None) -> Result:
     dyn = build_dynamics(model, scene)
-    settings = dynamic_settings_from_scene(scene.solver)
-    damped = bool(np.any(np.asarray(model.viscosity) != 0.0))
-    key = ("dynamic", model.structure, settings, damped, dyn.inertia_kind, dyn.drive_nodes,
-           dyn.channels.kinds, dyn.drive_times.shape, dyn.channels.table_t.shape)
+    solver = scene.solver
     start = time.perf_counter()
-    if key not in _COMPILED:
-        _COMPILED[key] = simulate.lower(model, dyn, settings, damped=damped).compile()
-    compile_time = time.perf_counter() - start
-    start = time.perf_counter()
-    trajectory = jax.block_until_ready(_COMPILED[key](model, dyn))
-    return Result(scene, model, trajectory, time.perf_counter() - start, compile_time)
+    trajectory, compile_time = rollout(
+        model, dyn, solver.dt, solver.t_end, solver.rho_inf, min(solver.save_every, max(
+            1, int(round(solver.t_end / solver.dt)))), progress=progress, compiled=_COMPILED)
+    wall = time.perf_counter() - start - compile_time
+    return Result(scene, model, jax.block_until_ready(trajectory), wall, compile_time)
 
 
-def run(scene) -> Result:
+def run(scene, progress=None) -> Result:
     """Solve a scene (a :class:`Scene`, a dict or a path to a .toml/.json file).
 
     Static scenes: :func:`~simsoft_jax.statics.solve_static` at full load. Dynamic scenes:
     :func:`~simsoft_jax.dynamics.simulate` from t = 0 for round(t_end/dt) steps, keeping
-    every ``save_every``-th state. Compilation is cached per model structure.
+    every ``save_every``-th state, in compiled chunks; ``progress(t, t_end)`` is called
+    after each chunk. Compilation is cached per model structure.
     """
     if isinstance(scene, (str, Path)):
         scene = load_scene(scene)
@@ -153,7 +142,7 @@ def run(scene) -> Result:
         scene = Scene.from_dict(scene)
     model = build_model(scene)
     if scene.solver.kind == "dynamic":
-        return _run_dynamic(scene, model)
+        return _run_dynamic(scene, model, progress)
     settings = settings_from_scene(scene.solver)
     solver, compile_time = compiled_static_solver(model, settings)
     start = time.perf_counter()
