@@ -297,6 +297,9 @@ def _newton_step(model, dyn, settings, state, h, damped):
         w, it, _, _ = c
         r, blocks = residual_and_matrix(w)
         dw = -block_solve(blocks, r)
+        # cap nodal rotation corrections at pi/4 (spec 4.7.6): keeps Newton on the branch
+        rot = jnp.max(jnp.linalg.norm(dw[:, 3:], axis=1))
+        dw = dw * jnp.minimum(1.0, 0.25 * jnp.pi / jnp.maximum(rot, 1e-300))
         size = step_norm(model, dw)
         finite = jnp.all(jnp.isfinite(dw))
         w_new = w + jnp.where(finite, dw, 0.0)
@@ -470,7 +473,8 @@ def _chunk_saves(total_saves: int, save_every: int, target_steps: int = 200) -> 
 
 
 def rollout(model: Model, dyn: Dynamics, dt: float, t_end: float, rho_inf: float = 0.9,
-            save_every: int = 1, damped: bool | None = None, progress=None, compiled=None):
+            save_every: int = 1, damped: bool | None = None, progress=None, compiled=None,
+            tolerance: float = 1e-10, max_iterations: int = 25):
     """Run from the initial state to ``t_end`` in compiled chunks of the same length.
 
     Any ``t_end`` reuses one compiled chunk (no recompilation for longer runs or new
@@ -484,7 +488,8 @@ def rollout(model: Model, dyn: Dynamics, dt: float, t_end: float, rho_inf: float
     total_saves = max(1, int(round(t_end / dt)) // save_every)
     per_chunk = _chunk_saves(total_saves, save_every)
     settings = DynamicSettings(dt=float(dt), steps=per_chunk * save_every,
-                               rho_inf=float(rho_inf), save_every=save_every)
+                               rho_inf=float(rho_inf), save_every=save_every,
+                               tolerance=float(tolerance), max_iterations=int(max_iterations))
     compiled = {} if compiled is None else compiled
     key = (model.structure, settings, damped, jax.tree_util.tree_structure(dyn),
            tuple(x.shape for x in jax.tree_util.tree_leaves(dyn)))
