@@ -33,6 +33,13 @@ class StaticSettings(NamedTuple):
       ``1/load_steps``; increments are halved on failure down to ``min_step_fraction`` of it,
       and grow back by 1.5 after easy steps).
     max_rotation_step: cap (rad) on the nodal rotation of one Newton update (spec 4.7.6).
+    line_search_steps, max_step_growth: a trial state is rejected (and the step from the
+      base halved, at most line_search_steps times) when its Newton step is more than
+      max_step_growth times the step that led to it — a divergence guard.
+    step_tolerance: converged when the next Newton step is below it (translations /
+      char_length, rotations in rad).
+    stagnation_level: also converged when the residual stops halving below this fraction
+      of the load scale (round-off floor of stiff axial terms, ~ eps EA).
     """
     tolerance: float = 1e-10
     max_iterations: int = 50
@@ -42,6 +49,8 @@ class StaticSettings(NamedTuple):
     line_search_steps: int = 8
     max_rotation_step: float = 0.5 * jnp.pi
     step_tolerance: float = 1e-11
+    stagnation_level: float = 1e-6
+    max_step_growth: float = 4.0
 
 
 class Equilibrium(NamedTuple):
@@ -105,11 +114,12 @@ def _newton(model: Model, settings: StaticSettings, R, p, lam, ref):
     """Newton iterations at load level ``lam`` from (R, p) (spec S71) with damping.
 
     One loop evaluates residual, tangent and Newton step at a trial state. The trial is
-    accepted when its Newton step is smaller than the step that led to it (the natural
-    monotonicity test of Deuflhard, theta < 1: it measures the distance to the
-    solution in the unknowns, so the huge axial stiffness of a rod cannot make a good step
-    look bad, as a residual-based Armijo test does); otherwise the step from the base is
-    halved. Returns (R, p, Newton steps, residual norm, converged).
+    accepted unless its Newton step exceeds ``max_step_growth`` times the step that led
+    to it (a natural-level divergence guard in the spirit of Deuflhard's monotonicity
+    test: it measures the distance to the solution in the unknowns, so the huge axial
+    stiffness of a rod cannot make a good step look bad, as a residual-based Armijo test
+    does; a strict theta < 1 test rejects good steps of stiff rods); a rejected trial
+    halves the step from the base. Returns (R, p, Newton steps, residual norm, converged).
     """
     tol = settings.tolerance * ref
 
@@ -121,9 +131,12 @@ def _newton(model: Model, settings: StaticSettings, R, p, lam, ref):
         dx = dx * jnp.minimum(1.0, settings.max_rotation_step / jnp.maximum(rot, 1e-300))
         size = _step_size(model, dx)
         finite = jnp.isfinite(res) & jnp.isfinite(size)
-        accept = finite & ((size < c["size_base"])
+        accept = finite & ((size < settings.max_step_growth * c["size_base"])
                            | (c["backtracks"] >= settings.line_search_steps))
-        converged = accept & (res <= tol)
+        # converged: residual below tolerance, or stagnating at the round-off floor (a stiff
+        # axial term makes |r| ~ eps EA) well below the load scale
+        converged = accept & ((res <= tol) | ((res <= settings.stagnation_level * ref)
+                                              & (res >= 0.5 * c["res_base"])))
         # the next Newton step is below step_tolerance: the state is that accurate, even
         # where round-off keeps the residual above tol (stiff axial terms, spec (S64))
         stalled = accept & (step_norm(model, dx) <= settings.step_tolerance)
@@ -141,11 +154,13 @@ def _newton(model: Model, settings: StaticSettings, R, p, lam, ref):
             R=jnp.where(done, c["R"], trial_R), p=jnp.where(done, c["p"], trial_p),
             base_R=base_R, base_p=base_p, dx=dx, step=step,
             size_base=jnp.where(accept, size, c["size_base"]), res=res,
+            res_base=jnp.where(accept, res, c["res_base"]),
             backtracks=jnp.where(accept, 0, c["backtracks"] + 1),
             iterations=iterations, status=status)
 
     init = dict(R=R, p=p, base_R=R, base_p=p, dx=jnp.zeros(p.shape[:1] + (6,)),
                 step=jnp.array(1.0), size_base=jnp.array(jnp.inf), res=jnp.array(jnp.inf),
+                res_base=jnp.array(jnp.inf),
                 backtracks=jnp.array(0), iterations=jnp.array(0), status=jnp.array(0))
     c = jax.lax.while_loop(lambda c: c["status"] == 0, body, init)
     return c["R"], c["p"], c["iterations"] - 1, c["res"], c["status"] == 1
