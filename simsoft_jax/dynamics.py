@@ -410,7 +410,6 @@ def _is_damped(model: Model) -> bool:
         return True
 
 
-@partial(jax.jit, static_argnames=("settings", "damped", "differentiable"))
 def simulate(model: Model, dyn: Dynamics, settings: DynamicSettings, state: State | None = None,
              damped: bool = True, differentiable: bool = False) -> Trajectory:
     """Roll out ``settings.steps`` steps of size ``settings.dt`` (``lax.scan``).
@@ -420,8 +419,17 @@ def simulate(model: Model, dyn: Dynamics, settings: DynamicSettings, state: Stat
     differentiated by the implicit function theorem (checkpointed scan: memory O(saved
     states)); a step that fails is then reported (no sub-stepping). Otherwise failed steps
     are retried with halved sub-steps. After the first failure the state is frozen and
-    ``converged`` is False, ``failed_at`` the time of the failing step.
+    ``converged`` is False, ``failed_at`` the time of the failing step. A given ``state``
+    is cast to float64 first, so weakly typed inputs do not trigger a recompilation.
     """
+    if state is not None:
+        state = State(*(jnp.asarray(x, jnp.float64) for x in state))
+    return _simulate(model, dyn, settings, state, damped=damped, differentiable=differentiable)
+
+
+@partial(jax.jit, static_argnames=("settings", "damped", "differentiable"))
+def _simulate(model: Model, dyn: Dynamics, settings: DynamicSettings, state: State | None,
+              damped: bool = True, differentiable: bool = False) -> Trajectory:
     state = initial_state(model, dyn, damped=damped) if state is None else state
 
     def step(carry, _):
@@ -496,7 +504,7 @@ def rollout(model: Model, dyn: Dynamics, dt: float, t_end: float, rho_inf: float
     start = _time.perf_counter()
     state = jax.block_until_ready(_initial_state(model, dyn, damped=damped))
     if key not in compiled:
-        compiled[key] = simulate.lower(model, dyn, settings, state, damped=damped).compile()
+        compiled[key] = _simulate.lower(model, dyn, settings, state, damped=damped).compile()
     compile_seconds = _time.perf_counter() - start
     chunks = []
     for _ in range(total_saves // per_chunk):
