@@ -56,8 +56,11 @@ class Dynamics:
     """Dynamic data of a scene beyond the Model. maps (E,G,6,12), masses (E,12,12):
     element inertia (see :mod:`simsoft_jax.inertia`); channels: time-dependent loads;
     v0 (N,6): initial nodal body velocities; drive_times (D,S), drive_displacement (D,S,3),
-    drive_rotation (D,S,3): drive tables (world frame, relative to the start pose).
-    Static: inertia_kind, drive_nodes (tuple of node indices)."""
+    drive_rotation (D,S,3): drive tables (world frame, relative to the start pose);
+    drive_slide (D,3): unit world direction along which a drive's node slides freely
+    (``slides_along``; zeros for drives that hold all six dofs).
+    Static: inertia_kind, drive_nodes (tuple of node indices), slide_drives (tuple of the
+    indices, into the drives, of the sliding ones)."""
     maps: jax.Array
     masses: jax.Array
     channels: LoadChannels
@@ -65,14 +68,16 @@ class Dynamics:
     drive_times: jax.Array
     drive_displacement: jax.Array
     drive_rotation: jax.Array
+    drive_slide: jax.Array
     inertia_kind: str = "consistent"
     drive_nodes: tuple = ()
+    slide_drives: tuple = ()
 
 
 jax.tree_util.register_dataclass(
     Dynamics, data_fields=["maps", "masses", "channels", "v0", "drive_times",
-                           "drive_displacement", "drive_rotation"],
-    meta_fields=["inertia_kind", "drive_nodes"])
+                           "drive_displacement", "drive_rotation", "drive_slide"],
+    meta_fields=["inertia_kind", "drive_nodes", "slide_drives"])
 
 
 class State(NamedTuple):
@@ -119,10 +124,6 @@ def build_dynamics(model: Model, scene, inertia_kind: str | None = None) -> Dyna
             v_world = iv.linear + np.cross(iv.angular, p0[i] - base)
             v0[i] = np.concatenate([R0[i].T @ v_world, R0[i].T @ iv.angular])
     drives = [c for c in scene.constraints if c.kind == "drive"]
-    for c in drives:
-        if c.slides_along is not None:
-            raise ValueError(f"constraints: drive on rod {c.rod!r} node {c.node}: "
-                             "slides_along is not supported by the dynamics solver yet")
     width = max([1] + [len(c.times) for c in drives])
 
     def hold_last(values):  # pad a (S, ...) table to width rows, holding the last row
@@ -134,9 +135,15 @@ def build_dynamics(model: Model, scene, inertia_kind: str | None = None) -> Dyna
     disp = np.array([hold_last(c.displacement) for c in drives]).reshape(k, width, 3)
     rot = np.array([hold_last(c.rotation) for c in drives]).reshape(k, width, 3)
     nodes = tuple(rods[c.rod].first_node + c.node for c in drives)
+    slide = np.zeros((k, 3))
+    for j, c in enumerate(drives):
+        if c.slides_along is not None:
+            e = np.asarray(c.slides_along, float)
+            slide[j] = e / np.linalg.norm(e)
+    sliding = tuple(j for j, c in enumerate(drives) if c.slides_along is not None)
     f64 = lambda a: jnp.asarray(a, jnp.float64)  # noqa: E731
     return Dynamics(maps, masses, build_channels(scene, s), f64(v0), f64(times), f64(disp),
-                    f64(rot), kind, nodes)
+                    f64(rot), f64(slide), kind, nodes, sliding)
 
 
 def drive_poses(model: Model, dyn: Dynamics, t):
@@ -182,19 +189,22 @@ def _element_residual(model: Model, dyn: Dynamics, damped: bool):
     return residual
 
 
-def dynamic_residual(model: Model, dyn: Dynamics, R, p, v, vd, damped: bool):
-    """Global dynamic residual (N,6) (spec S47), held dofs zeroed."""
+def dynamic_residual(model: Model, dyn: Dynamics, R, p, v, vd, damped: bool, masked=True):
+    """Global dynamic residual (N,6) (spec S47), held dofs zeroed (unless ``masked=False``)."""
     s = model.structure
     a = jnp.asarray(s.element_nodes)
     f = jax.vmap(_element_residual(model, dyn, damped))(*_element_args(model, dyn, R, p, v, vd))
     r = jnp.zeros((s.n_nodes, 6)).at[a].add(f[:, :6]).at[a + 1].add(f[:, 6:])
     if s.has_nodal_dead or s.has_nodal_follower:
         r = r + jax.vmap(_nodal_load(model, 1.0))(R, model.nodal_dead, model.nodal_follower)
-    return r * s.free_mask()
+    return r * s.free_mask() if masked else r
 
 
-def residual_and_iteration_matrix(model, dyn, R, p, v, vd, w, beta_p, gamma_p, damped):
-    """Residual (N,6) and block-tridiagonal ``M beta' + C_t gamma' + K_t T(w)`` (S61, S66)."""
+def residual_and_iteration_matrix(model, dyn, R, p, v, vd, w, beta_p, gamma_p, damped,
+                                  slide=None):
+    """Residual (N,6) and block-tridiagonal ``M beta' + C_t gamma' + K_t T(w)`` (S61, S66).
+    ``slide = (C, B, mask)`` (see :func:`_slide_maps`) reduces sliding drive nodes to their
+    slide unknown before the held dofs are eliminated."""
     s = model.structure
     n = s.n_nodes
     a = jnp.asarray(s.element_nodes)
@@ -230,7 +240,46 @@ def residual_and_iteration_matrix(model, dyn, R, p, v, vd, w, beta_p, gamma_p, d
         f_n, k_n = jax.vmap(node_value_and_jac)(R, model.nodal_dead, model.nodal_follower)
         r = r + f_n
         diag = diag + k_n @ T
+    if slide is not None:
+        C, B, mask = slide
+        r, blocks = _reduce(C, B, r, (diag, upper, lower))
+        return apply_constraints(mask, r, blocks)
     return apply_constraints(s.free_mask(), r, (diag, upper, lower))
+
+
+# ------------------------------------------------------------------------------ sliding drives
+
+def _slide_maps(model: Model, dyn: Dynamics, R_n, w):
+    """Reduction of the sliding drive nodes to one unknown each, the slide ``ds`` along the
+    world direction e. With the rotation increment fixed, ``p_{n+1} = p_n + R_n T_SO3^T w_U``
+    is linear in ``w_U``, so ``w += B ds`` with ``B[:, 0] = [T_SO3^-T R_n^T e; 0]`` moves the
+    node by ``ds e``. Its equation is the force along e at the new state: ``C r`` with
+    ``C[0] = [R_{n+1}^T e; 0]`` (both exact and constant during a step's Newton iterations).
+    Returns ``(C, B, mask)``: (N,6,6) row and column maps (identity elsewhere) and the free
+    mask with the slide dof (row/column 0) of those nodes free."""
+    n = model.structure.n_nodes
+    sl = jnp.asarray(dyn.slide_drives, int)
+    idx = jnp.asarray(dyn.drive_nodes, int)[sl]
+    e = dyn.drive_slide[sl]
+    Rn, wr = R_n[idx], w[idx, 3:]
+    body = jnp.einsum("kji,kj->ki", Rn, e)                              # R_n^T e
+    b = jnp.einsum("kji,kj->ki", jax.vmap(lie.tangent_so3_inv)(wr), body)  # T^-T R_n^T e
+    c = jnp.einsum("kji,kj->ki", jax.vmap(lie.exp_so3)(wr), body)       # R_{n+1}^T e
+    zeros = jnp.zeros((len(dyn.slide_drives), 6, 6))
+    Cn = zeros.at[:, 0, :3].set(c)
+    Bn = zeros.at[:, :3, 0].set(b)
+    eye = jnp.broadcast_to(jnp.eye(6), (n, 6, 6))
+    mask = model.structure.free_mask().at[idx].set(jnp.eye(6)[0])
+    return eye.at[idx].set(Cn), eye.at[idx].set(Bn), mask
+
+
+def _reduce(C, B, r, blocks):
+    """``r_i -> C_i r_i``, ``K_ij -> C_i K_ij B_j`` on the block-tridiagonal matrix."""
+    diag, upper, lower = blocks
+    diag = C @ diag @ B
+    upper = C[:-1] @ upper @ B[1:]
+    lower = C[1:] @ lower @ B[:-1]
+    return jnp.einsum("nij,nj->ni", C, r), (diag, upper, lower)
 
 
 # ------------------------------------------------------------------------------ one step
@@ -245,11 +294,17 @@ def _fields(settings: DynamicSettings, state: State, w, h):
 
 
 def _held_increments(model: Model, dyn: Dynamics, state: State, t1):
-    """Prescribed ``w`` of held dofs: 0 for clamps and pins, ``log(H_n^-1 H_c(t))`` for drives."""
+    """Prescribed ``w`` of held dofs: 0 for clamps and pins, ``log(H_n^-1 H_c(t))`` for drives.
+    A sliding drive keeps its current slide ``s_n = (p_n - p_c(t_n)) . e``: its target
+    position is ``p_c(t1) + s_n e`` (Newton then solves for the change of slide)."""
     w = jnp.zeros_like(state.v)
     if dyn.drive_nodes:
         idx = jnp.asarray(dyn.drive_nodes, int)
         Rc, pc = drive_poses(model, dyn, t1)
+        if dyn.slide_drives:
+            e = dyn.drive_slide  # zero rows for drives that do not slide
+            s_n = jnp.sum((state.p[idx] - drive_poses(model, dyn, state.t)[1]) * e, axis=1)
+            pc = pc + s_n[:, None] * e
         wd = jax.vmap(lambda Ra, pa, Rb, pb: lie.log_se3(lie.relative_pose(Ra, pa, Rb, pb)))(
             state.R[idx], state.p[idx], Rc, pc)
         w = w.at[idx].set(wd)
@@ -276,8 +331,9 @@ def _step_functions(model, dyn, settings, state, h, damped):
 
     def residual_and_matrix(w):
         s1 = new_state(w)
+        slide = _slide_maps(model, dyn, state.R, w) if dyn.slide_drives else None
         return residual_and_iteration_matrix(loaded, dyn, s1.R, s1.p, s1.v, s1.vd, w,
-                                             beta_p, gamma_p, damped)
+                                             beta_p, gamma_p, damped, slide)
 
     return new_state, residual, residual_and_matrix, t1
 
@@ -297,6 +353,8 @@ def _newton_step(model, dyn, settings, state, h, damped):
         w, it, _, _ = c
         r, blocks = residual_and_matrix(w)
         dw = -block_solve(blocks, r)
+        if dyn.slide_drives:  # back from slide unknowns to increments (spec: slides_along)
+            dw = jnp.einsum("nij,nj->ni", _slide_maps(model, dyn, state.R, w)[1], dw)
         # cap nodal rotation corrections at pi/4 (spec 4.7.6): keeps Newton on the branch
         rot = jnp.max(jnp.linalg.norm(dw[:, 3:], axis=1))
         dw = dw * jnp.minimum(1.0, 0.25 * jnp.pi / jnp.maximum(rot, 1e-300))
@@ -390,7 +448,8 @@ def initial_state(model: Model, dyn: Dynamics, t0=0.0, damped=None) -> State:
     t0 = jnp.asarray(t0, jnp.float64)
     loaded = loaded_model(model, dyn.channels, t0)
     zeros = jnp.zeros_like(dyn.v0)
-    g = dynamic_residual(loaded, dyn, model.R0, model.p0, dyn.v0, zeros, damped)
+    g = dynamic_residual(loaded, dyn, model.R0, model.p0, dyn.v0, zeros, damped,
+                         masked=False)
     s = model.structure
     a = jnp.asarray(s.element_nodes)
     n = s.n_nodes
@@ -398,8 +457,14 @@ def initial_state(model: Model, dyn: Dynamics, t0=0.0, damped=None) -> State:
         dyn.masses[:, 6:, 6:])
     upper = jnp.zeros((max(n - 1, 0), 6, 6)).at[a].set(dyn.masses[:, :6, 6:])
     lower = jnp.zeros((max(n - 1, 0), 6, 6)).at[a].set(dyn.masses[:, 6:, :6])
-    g, blocks = apply_constraints(s.free_mask(), g, (diag, upper, lower))
-    vd0 = -block_solve(blocks, g)
+    blocks = (diag, upper, lower)
+    if dyn.slide_drives:  # a sliding node accelerates along its direction (w = 0: B = C^T)
+        C, B, mask = _slide_maps(model, dyn, model.R0, zeros)
+        g, blocks = apply_constraints(mask, *_reduce(C, B, g, blocks))
+        vd0 = jnp.einsum("nij,nj->ni", B, -block_solve(blocks, g))
+    else:
+        g, blocks = apply_constraints(s.free_mask(), g, blocks)
+        vd0 = -block_solve(blocks, g)
     return State(model.R0, model.p0, dyn.v0, vd0, vd0, t0)
 
 
@@ -430,6 +495,9 @@ def simulate(model: Model, dyn: Dynamics, settings: DynamicSettings, state: Stat
 @partial(jax.jit, static_argnames=("settings", "damped", "differentiable"))
 def _simulate(model: Model, dyn: Dynamics, settings: DynamicSettings, state: State | None,
               damped: bool = True, differentiable: bool = False) -> Trajectory:
+    if differentiable and dyn.slide_drives:
+        raise ValueError("constraints: differentiable=True does not support drives with "
+                         "slides_along yet (the implicit-function derivative would be wrong)")
     state = initial_state(model, dyn, damped=damped) if state is None else state
 
     def step(carry, _):
