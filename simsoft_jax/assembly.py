@@ -58,12 +58,38 @@ def _element_args(model: Model, R, p):
             model.distributed_world, model.distributed_local)
 
 
+def assemble_vector(n_nodes, element_nodes, f_el):
+    """Scatter element vectors (E,12) to nodes (N,6) (spec S47)."""
+    a = jnp.asarray(element_nodes)
+    return jnp.zeros((n_nodes, 6)).at[a].add(f_el[:, :6]).at[a + 1].add(f_el[:, 6:])
+
+
+def assemble_blocks(n_nodes, element_nodes, k_el):
+    """Element matrices (E,12,12) -> block-tridiagonal ``(diag, upper, lower)`` (spec 3.6)."""
+    a = jnp.asarray(element_nodes)
+    diag = jnp.zeros((n_nodes, 6, 6)).at[a].add(k_el[:, :6, :6]).at[a + 1].add(k_el[:, 6:, 6:])
+    upper = jnp.zeros((max(n_nodes - 1, 0), 6, 6)).at[a].set(k_el[:, :6, 6:])
+    lower = jnp.zeros((max(n_nodes - 1, 0), 6, 6)).at[a].set(k_el[:, 6:, :6])
+    return diag, upper, lower
+
+
+def nodal_load_and_tangent(model: Model, lam, R):
+    """``-lam f_ext`` per node (N,6) and its left-invariant derivative (N,6,6) (spec S43)."""
+    load = _nodal_load(model, lam)
+
+    def value_and_jac(R_i, dead, follower):
+        f = lambda x: load(R_i @ lie.exp_so3(x[3:]), dead, follower)  # noqa: E731
+        jac, val = jax.jacfwd(lambda x: (f(x),) * 2, has_aux=True)(jnp.zeros(6))
+        return val, jac
+
+    return jax.vmap(value_and_jac)(R, model.nodal_dead, model.nodal_follower)
+
+
 def residual(model: Model, R, p, lam=1.0):
     """Global residual (N,6), held dofs zeroed (spec S47/S70)."""
     s = model.structure
-    a = jnp.asarray(s.element_nodes)
     f_el = jax.vmap(_element_residual(model, lam))(*_element_args(model, R, p))
-    r = jnp.zeros((s.n_nodes, 6)).at[a].add(f_el[:, :6]).at[a + 1].add(f_el[:, 6:])
+    r = assemble_vector(s.n_nodes, s.element_nodes, f_el)
     if s.has_nodal_dead or s.has_nodal_follower:
         r = r + jax.vmap(_nodal_load(model, lam))(R, model.nodal_dead, model.nodal_follower)
     return r * s.free_mask()
@@ -72,8 +98,6 @@ def residual(model: Model, R, p, lam=1.0):
 def residual_and_tangent(model: Model, R, p, lam=1.0):
     """Residual (N,6) and block-tridiagonal tangent ``(diag, upper, lower)`` (spec S70)."""
     s = model.structure
-    n = s.n_nodes
-    a = jnp.asarray(s.element_nodes)
     elem = _element_residual(model, lam)
 
     def value_and_jac(RA, d, *data):
@@ -86,19 +110,10 @@ def residual_and_tangent(model: Model, R, p, lam=1.0):
         return val, jac
 
     f_el, k_el = jax.vmap(value_and_jac)(*_element_args(model, R, p))
-    r = jnp.zeros((n, 6)).at[a].add(f_el[:, :6]).at[a + 1].add(f_el[:, 6:])
-    diag = jnp.zeros((n, 6, 6)).at[a].add(k_el[:, :6, :6]).at[a + 1].add(k_el[:, 6:, 6:])
-    upper = jnp.zeros((max(n - 1, 0), 6, 6)).at[a].set(k_el[:, :6, 6:])
-    lower = jnp.zeros((max(n - 1, 0), 6, 6)).at[a].set(k_el[:, 6:, :6])
+    r = assemble_vector(s.n_nodes, s.element_nodes, f_el)
+    diag, upper, lower = assemble_blocks(s.n_nodes, s.element_nodes, k_el)
     if s.has_nodal_dead or s.has_nodal_follower:
-        load = _nodal_load(model, lam)
-
-        def node_value_and_jac(R_i, dead, follower):
-            f = lambda x: load(R_i @ lie.exp_so3(x[3:]), dead, follower)  # noqa: E731
-            jac, val = jax.jacfwd(lambda x: (f(x),) * 2, has_aux=True)(jnp.zeros(6))
-            return val, jac
-
-        f_n, k_n = jax.vmap(node_value_and_jac)(R, model.nodal_dead, model.nodal_follower)
+        f_n, k_n = nodal_load_and_tangent(model, lam, R)
         r = r + f_n
         diag = diag + k_n
     return apply_constraints(s.free_mask(), r, (diag, upper, lower))

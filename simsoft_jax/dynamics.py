@@ -23,7 +23,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import element, inertia, lie
-from .assembly import _nodal_load, apply_constraints, block_matvec, block_solve, block_transpose
+from .assembly import (_nodal_load, apply_constraints, assemble_blocks, assemble_vector,
+                       block_matvec, block_solve, block_transpose, nodal_load_and_tangent)
 from .loads import LoadChannels, build_channels, loaded_model
 from .model import Model
 from .statics import step_norm
@@ -192,9 +193,8 @@ def _element_residual(model: Model, dyn: Dynamics, damped: bool):
 def dynamic_residual(model: Model, dyn: Dynamics, R, p, v, vd, damped: bool, masked=True):
     """Global dynamic residual (N,6) (spec S47), held dofs zeroed (unless ``masked=False``)."""
     s = model.structure
-    a = jnp.asarray(s.element_nodes)
     f = jax.vmap(_element_residual(model, dyn, damped))(*_element_args(model, dyn, R, p, v, vd))
-    r = jnp.zeros((s.n_nodes, 6)).at[a].add(f[:, :6]).at[a + 1].add(f[:, 6:])
+    r = assemble_vector(s.n_nodes, s.element_nodes, f)
     if s.has_nodal_dead or s.has_nodal_follower:
         r = r + jax.vmap(_nodal_load(model, 1.0))(R, model.nodal_dead, model.nodal_follower)
     return r * s.free_mask() if masked else r
@@ -225,19 +225,10 @@ def residual_and_iteration_matrix(model, dyn, R, p, v, vd, w, beta_p, gamma_p, d
     TA, TB = T[a], T[a + 1]
     K_el = jnp.concatenate([K_el[:, :, :6] @ TA, K_el[:, :, 6:] @ TB], axis=2)
     S_el = M_el * beta_p + C_el * gamma_p + K_el
-    r = jnp.zeros((n, 6)).at[a].add(f_el[:, :6]).at[a + 1].add(f_el[:, 6:])
-    diag = jnp.zeros((n, 6, 6)).at[a].add(S_el[:, :6, :6]).at[a + 1].add(S_el[:, 6:, 6:])
-    upper = jnp.zeros((max(n - 1, 0), 6, 6)).at[a].set(S_el[:, :6, 6:])
-    lower = jnp.zeros((max(n - 1, 0), 6, 6)).at[a].set(S_el[:, 6:, :6])
+    r = assemble_vector(n, s.element_nodes, f_el)
+    diag, upper, lower = assemble_blocks(n, s.element_nodes, S_el)
     if s.has_nodal_dead or s.has_nodal_follower:
-        load = _nodal_load(model, 1.0)
-
-        def node_value_and_jac(R_i, dead, follower):
-            g = lambda x: load(R_i @ lie.exp_so3(x[3:]), dead, follower)  # noqa: E731
-            jac, val = jax.jacfwd(lambda x: (g(x),) * 2, has_aux=True)(jnp.zeros(6))
-            return val, jac
-
-        f_n, k_n = jax.vmap(node_value_and_jac)(R, model.nodal_dead, model.nodal_follower)
+        f_n, k_n = nodal_load_and_tangent(model, 1.0, R)
         r = r + f_n
         diag = diag + k_n @ T
     if slide is not None:
@@ -451,13 +442,7 @@ def initial_state(model: Model, dyn: Dynamics, t0=0.0, damped=None) -> State:
     g = dynamic_residual(loaded, dyn, model.R0, model.p0, dyn.v0, zeros, damped,
                          masked=False)
     s = model.structure
-    a = jnp.asarray(s.element_nodes)
-    n = s.n_nodes
-    diag = jnp.zeros((n, 6, 6)).at[a].add(dyn.masses[:, :6, :6]).at[a + 1].add(
-        dyn.masses[:, 6:, 6:])
-    upper = jnp.zeros((max(n - 1, 0), 6, 6)).at[a].set(dyn.masses[:, :6, 6:])
-    lower = jnp.zeros((max(n - 1, 0), 6, 6)).at[a].set(dyn.masses[:, 6:, :6])
-    blocks = (diag, upper, lower)
+    blocks = assemble_blocks(s.n_nodes, s.element_nodes, dyn.masses)
     if dyn.slide_drives:  # a sliding node accelerates along its direction (w = 0: B = C^T)
         C, B, mask = _slide_maps(model, dyn, model.R0, zeros)
         g, blocks = apply_constraints(mask, *_reduce(C, B, g, blocks))
