@@ -32,9 +32,8 @@ def plot(result, path):
         for Ri, pi in zip(R[::2], p[::2]):
             for k, color in zip((1, 2), ("g", "b")):
                 ax.plot(*np.stack([pi, pi + scale * Ri[:, k]]).T, color=color, lw=0.8)
-    ax.set_aspect("equal")
     ax.set_xlabel("x [m]"), ax.set_ylabel("y [m]"), ax.set_zlabel("z [m]")
-    ax.set_title(f"{result.name}: tip after {result.newton_iterations} Newton iterations")
+    ax.set_title(f"{result.name} ({result.newton_iterations} Newton iterations; axes not to scale)")
     ax.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=120)
