@@ -177,7 +177,7 @@ def _element_residual(model: Model, dyn: Dynamics, damped: bool):
 
     def residual(RA, d, ve, vde, maps, mass, d0, length, stiffness, inert, visc, qw, ql):
         P = element.strain_map(d)
-        r = mass @ vde + inertia.gyroscopic_force(maps, length, inert, ve, dyn.inertia_kind)
+        r = mass @ vde + inertia.gyroscopic_force(maps, length, inert, ve, dyn.inertia_kind, mass)
         r = r + element.internal_force(P, d, d0, length, stiffness)
         if damped:
             r = r + element.viscous_force(P, ve, length, visc)

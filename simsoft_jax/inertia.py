@@ -9,10 +9,13 @@ Both options use the velocity field of the reference shape, ``v(s) = N0(s) v_e``
 * ``"lumped"`` (I4): the trapezoid rule at the two nodes, ``N0(0) = [I, 0]``,
   ``N0(L) = [0, I]``: ``M_i = sum (L/2) M`` and nodal gyroscopic forces.
 
-Mass matrix ``M_e = sum_g w_g L N0_g^T M N0_g`` (12,12), constant; gyroscopic force
-``g_e(v_e) = -sum_g w_g L N0_g^T ad_{u_g}^T M u_g``, ``u_g = N0_g v_e`` (spec I2, S46).
-Both are exact for rigid motion of a straight element; neither depends on the
-configuration, so inertia adds ``M beta'`` and ``C_gyr gamma'`` to the iteration matrix only.
+Mass matrix ``M_e = sum_g w_g L N0_g^T M N0_g`` (12,12), constant. Gyroscopic forces:
+lumped, ``-ad_{v_i}^T M_i v_i`` per node (S46); consistent, the Euler-Poincare term of the
+discrete kinetic energy ``1/2 v_e^T M_e v_e``, ``-ad_{v_i}^T (M_e v_e)_i`` per node, which
+conserves energy and the momentum map of the semi-discrete system (the frozen-field form
+``-int N0^T ad_u^T M u`` of spec I2 lets momentum drift by O(strain) on soft rods). Both
+are exact for rigid motion of a straight element; neither depends on the configuration,
+so inertia adds ``M beta'`` and ``C_gyr gamma'`` to the iteration matrix only.
 """
 from __future__ import annotations
 
@@ -42,10 +45,22 @@ def mass_matrix(maps, length, inertia, kind: str):
     return jnp.einsum("g,gai,a,gaj->ij", weights, maps, inertia, maps)
 
 
-def gyroscopic_force(maps, length, inertia, velocities, kind: str):
-    """Gyroscopic element force (12,) ``-sum w L N0^T ad_u^T M u`` (spec S46 per point).
+def gyroscopic_force(maps, length, inertia, velocities, kind: str, mass=None):
+    """Gyroscopic element force (12,).
 
-    For diagonal ``M``: ``-ad_u^T M u = [m w x v; w x (J w)]`` (spec S46)."""
+    ``"lumped"``: ``-sum w L N0^T ad_u^T M u`` at the two nodes (spec I4, S46).
+    ``"consistent"``: the Euler-Poincare term of the discrete kinetic energy
+    ``1/2 v_e^T M_e v_e`` on SE(3) x SE(3): ``[-ad_{v_A}^T (M_e v_e)_A; -ad_{v_B}^T (M_e v_e)_B]``
+    (needs ``mass = M_e``). Assembled, it gives ``-ad_{v_i}^T (M v)_i`` per node, which keeps
+    the energy and the momentum map of the discrete system (the frozen-field form
+    ``-int N0^T ad_u^T M u`` of spec I2 does not: its momentum drifts by O(strain)).
+    """
+    if kind == "consistent":
+        mv = (mass @ velocities).reshape(2, 6)
+        v = velocities.reshape(2, 6)
+        lin = jnp.cross(mv[:, :3], v[:, 3:])
+        ang = jnp.cross(mv[:, :3], v[:, :3]) + jnp.cross(mv[:, 3:], v[:, 3:])
+        return -jnp.concatenate([lin, ang], axis=1).reshape(12)
     weights = jnp.asarray(RULES[kind][1]) * length
     u = maps @ velocities                      # (G, 6) section velocities
     mu = inertia * u

@@ -311,8 +311,9 @@ RUBBER = dict(E=1.0e7, density=1.0e3)  # hit below, its elements bend by up to ~
 
 
 @pytest.mark.parametrize("inertia, material", [("lumped", ALUMINIUM), ("consistent", ALUMINIUM),
-                                               ("lumped", RUBBER)],
-                         ids=["lumped-aluminium", "consistent-aluminium", "lumped-rubber"])
+                                               ("lumped", RUBBER), ("consistent", RUBBER)],
+                         ids=["lumped-aluminium", "consistent-aluminium", "lumped-rubber",
+                              "consistent-rubber"])
 def test_momentum_of_free_rod_after_force_pulse(inertia, material):
     """Free-free rod (10 elements, rho_inf = 0.9) hit at its tip by a dead world force
     F = (1, 0.5, 3) N following a triangular pulse over 0.1 s, then free for 1.9 s; it
@@ -327,11 +328,11 @@ def test_momentum_of_free_rod_after_force_pulse(inertia, material):
       aluminium 1.3e-4 -> 2.1e-5 (lumped and consistent), rubber (lumped)
       1.4e-2 -> 3.1e-3 (-> 7.5e-4). Asserted: drift < 3e-4 (aluminium) / 2e-2 (rubber)
       at dt = 0.01 and a reduction >= 3.4x (order >= 1.75) when dt halves.
-    The frozen consistent inertia (I2) is only checked on aluminium (element rotations
-    ~1e-3 rad): its gyroscopic force is not the Euler-Poincare force of M_e, so no momentum
-    map is conserved exactly by the semi-discrete equations. On the rubber rod its momentum
-    drifts by 1.7e-2 at dt = 0.01, 0.005 and 0.0025 alike (an O(deformation) model error of
-    I2, reported, not asserted)."""
+    Consistent inertia on the rubber rod: the gyroscopic force is the Euler-Poincare term
+    of M_e (see simsoft_jax.inertia), so the semi-discrete equations conserve this momentum
+    map and the drift falls with dt: 1.29e-2 -> 4.6e-3 (ratio 2.8, still pre-asymptotic on
+    this strongly deforming rod; asserted >= 2.5). With the earlier frozen-field form
+    (spec I2) it stayed at 1.7e-2 for every dt (an O(deformation) model error)."""
     F = np.array([1.0, 0.5, 3.0])
     model, dyn = free_rod(material, F, inertia)
     chain = Chain(N_FREE, L_FREE, model.stiffness[0], model.inertia[0], inertia)
@@ -359,7 +360,8 @@ def test_momentum_of_free_rod_after_force_pulse(inertia, material):
         assert np.min(R[:, 0, 0, 0]) < np.cos(np.radians(30))
     bound = 3e-4 if material is ALUMINIUM else 2e-2
     assert drifts[0] < bound, drifts
-    assert drifts[1] < drifts[0] / 3.4, drifts
+    reduction = 2.5 if (inertia, material) == ("consistent", RUBBER) else 3.4
+    assert drifts[1] < drifts[0] / reduction, drifts
 
 
 # ------------------------------------------------------------------------- the cantilever
