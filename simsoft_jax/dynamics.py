@@ -15,6 +15,7 @@ solve by the implicit function theorem (``differentiable=True``, see :func:`simu
 from __future__ import annotations
 
 import dataclasses
+import time
 from functools import partial
 from typing import NamedTuple
 
@@ -304,8 +305,7 @@ def _held_increments(model: Model, dyn: Dynamics, state: State, t1):
 
 def _step_functions(model, dyn, settings, state, h, damped):
     """F(w) pieces for one step of size h from ``state``."""
-    _, _, gamma, beta = alpha_parameters(settings.rho_inf)
-    alpha_m, alpha_f = alpha_parameters(settings.rho_inf)[:2]
+    alpha_m, alpha_f, gamma, beta = alpha_parameters(settings.rho_inf)
     beta_p = (1.0 - alpha_m) / (h * h * beta * (1.0 - alpha_f))
     gamma_p = gamma / (h * beta)
     t1 = state.t + h
@@ -331,8 +331,7 @@ def _step_functions(model, dyn, settings, state, h, damped):
 
 def _newton_step(model, dyn, settings, state, h, damped):
     """Newton on F(w) = 0 (spec S66). Returns (w, iterations, converged)."""
-    _, _, gamma, beta = alpha_parameters(settings.rho_inf)
-    alpha_m, alpha_f = alpha_parameters(settings.rho_inf)[:2]
+    alpha_m, alpha_f, _, beta = alpha_parameters(settings.rho_inf)
     _, _, residual_and_matrix, t1 = _step_functions(model, dyn, settings, state, h, damped)
     mask = model.structure.free_mask()
     # predictor (S60)
@@ -543,10 +542,10 @@ def rollout(model: Model, dyn: Dynamics, dt: float, t_end: float, rho_inf: float
     first failed step. ``compiled`` may be a dict used as a cache of compiled chunks.
     Returns ``(Trajectory, compile_seconds)`` with all saved states concatenated.
     """
-    import time as _time
-
     damped = _is_damped(model) if damped is None else damped
-    total_saves = max(1, int(round(t_end / dt)) // save_every)
+    steps = max(1, int(round(t_end / dt)))
+    save_every = min(save_every, steps)
+    total_saves = steps // save_every
     per_chunk = _chunk_saves(total_saves, save_every)
     settings = DynamicSettings(dt=float(dt), steps=per_chunk * save_every,
                                rho_inf=float(rho_inf), save_every=save_every,
@@ -554,11 +553,11 @@ def rollout(model: Model, dyn: Dynamics, dt: float, t_end: float, rho_inf: float
     compiled = {} if compiled is None else compiled
     key = (model.structure, settings, damped, jax.tree_util.tree_structure(dyn),
            tuple(x.shape for x in jax.tree_util.tree_leaves(dyn)))
-    start = _time.perf_counter()
+    start = time.perf_counter()
     state = jax.block_until_ready(_initial_state(model, dyn, damped=damped))
     if key not in compiled:
         compiled[key] = _simulate.lower(model, dyn, settings, state, damped=damped).compile()
-    compile_seconds = _time.perf_counter() - start
+    compile_seconds = time.perf_counter() - start
     chunks = []
     for _ in range(total_saves // per_chunk):
         traj = compiled[key](model, dyn, state)

@@ -122,9 +122,9 @@ def _run_dynamic(scene: Scene, model: Model, progress=None) -> Result:
     solver = scene.solver
     start = time.perf_counter()
     trajectory, compile_time = rollout(
-        model, dyn, solver.dt, solver.t_end, solver.rho_inf, min(solver.save_every, max(
-            1, int(round(solver.t_end / solver.dt)))), progress=progress, compiled=_COMPILED,
-        tolerance=solver.tolerance, max_iterations=solver.max_iterations)
+        model, dyn, solver.dt, solver.t_end, solver.rho_inf, solver.save_every,
+        progress=progress, compiled=_COMPILED, tolerance=solver.tolerance,
+        max_iterations=solver.max_iterations)
     wall = time.perf_counter() - start - compile_time
     return Result(scene, model, jax.block_until_ready(trajectory), wall, compile_time)
 
