@@ -1,0 +1,231 @@
+"""Every example script (one per seed result) runs in its fast mode and reproduces its
+physics: each is started as a subprocess (``--fast --out DIR``, MPLBACKEND=Agg, from a
+foreign working directory), must exit 0, write its PNG figures, and its
+``summary.json`` numbers are checked against references computed here, independently of
+the package:
+
+* pure bending (seed Fig. 9): the exact circular arc (spec S74) at five torques;
+* free planar rotation (Figs. 11-12): the stretched steady rotation (S79) of node B;
+* helical scenes (Figs. 5-8): converged, finite, the arm length within the strain bound
+  ``|F| / min(EA, k G A)``, and the work-energy theorem (work of the dead tip loads =
+  kinetic + strain energy) up to the small dissipation of rho_inf = 0.9; the spring-steel
+  rod, loaded slowly, ends near the quasi-static equilibrium computed here by shooting on
+  the continuum Cosserat rod (scipy);
+* Magellan catheter (Fig. 20): with end moments only, the quasi-static continuum solution
+  is an initial-value problem (internal moment known in world coordinates), integrated
+  here with scipy;
+* bending actuator (Fig. 22): the section constant EI_y of a half disc, planar motion and
+  the work-energy theorem.
+
+Run time: the scripts run in two parallel lanes, each with a persistent JAX compilation
+cache (every compilation kept, one folder per lane and test session), so programs with
+the same structure (the spring-steel and silicone rods, the many small eager kernels)
+compile once per session.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+scipy_integrate = pytest.importorskip("scipy.integrate")
+scipy_optimize = pytest.importorskip("scipy.optimize")
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+FIGURES = {
+    "pure_bending": ["pure_bending.png", "pure_bending_3d.png"],
+    "free_planar_rotation": ["node_B_displacements.png", "errors.png", "snapshots.png"],
+    "helical_motion": ["tip_displacements.png", "snapshots.png", "snapshot_t3.png"],
+    "spring_steel_rod": ["tip_displacements.png", "snapshots.png"],
+    "silicone_body": ["tip_displacements.png", "snapshots.png"],
+    "magellan_catheter": ["snapshots.png", "tip_displacements.png"],
+    "bending_actuator": ["snapshots.png", "snapshots_3d.png", "tip_displacements.png"],
+}
+
+
+# Two lanes run side by side (2 cores); each runs its examples one after the other with
+# its own persistent JAX compilation cache (a cache folder is never written by two
+# processes at once). Lane 0 holds the scenes that share compiled programs (spring steel
+# then silicone) and its cache is reused by tests/test_notebooks.py (same folder name).
+LANES = (("helical_motion", "spring_steel_rod", "silicone_body", "pure_bending"),
+         ("free_planar_rotation", "magellan_catheter", "bending_actuator"))
+CACHE_NAMES = ("jax_compilation_cache", "jax_compilation_cache_lane1")
+
+
+def run_example(name: str, tmp_path: Path, cache: Path) -> tuple[dict, Path]:
+    """Run ``examples/<name>.py --fast`` in ``tmp_path``; check the exit code and the
+    figures; return its summary.json and its output folder."""
+    out = tmp_path / "out"
+    env = dict(os.environ, MPLBACKEND="Agg", JAX_COMPILATION_CACHE_DIR=str(cache),
+               JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS="0")
+    proc = subprocess.run([sys.executable, str(EXAMPLES / f"{name}.py"), "--fast",
+                           "--out", str(out)], cwd=tmp_path, env=env, capture_output=True,
+                          text=True, timeout=900)
+    assert proc.returncode == 0, f"{name} failed:\n{proc.stdout}\n{proc.stderr}"
+    assert "summary.json" in proc.stdout
+    for figure in FIGURES[name]:
+        path = out / figure
+        assert path.is_file() and path.stat().st_size > 1000, f"{name}: {figure} missing"
+    return json.loads((out / "summary.json").read_text()), out
+
+
+@pytest.fixture(scope="module")
+def examples(request, tmp_path_factory):
+    """Futures of the example runs (name -> (summary, out folder)), started at once in
+    the two lanes for the examples whose tests are selected."""
+    selected = [item.name for item in request.session.items
+                if getattr(item, "module", None) is request.module]
+    base = tmp_path_factory.getbasetemp()
+    futures, pools = {}, []
+    for lane, cache_name in zip(LANES, CACHE_NAMES):
+        cache = base / cache_name
+        cache.mkdir(exist_ok=True)
+        pool = ThreadPoolExecutor(max_workers=1)
+        pools.append(pool)
+        for name in lane:
+            if any(name in test for test in selected):
+                futures[name] = pool.submit(run_example, name, tmp_path_factory.mktemp(name),
+                                            cache)
+    yield futures
+    for pool in pools:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def hat(x):
+    return np.array([[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]])
+
+
+def circle_constants(E, nu, density, d):
+    """EA, kGA (Cowper k = 6(1+nu)/(7+6nu)), GJ, EI, EI of a solid circle; rho A."""
+    G, A, I = E / (2 * (1 + nu)), math.pi * d**2 / 4, math.pi * d**4 / 64
+    k = 6 * (1 + nu) / (7 + 6 * nu)
+    return np.array([E * A, k * G * A, k * G * A, 2 * G * I, E * I, E * I]), density * A
+
+
+# ------------------------------------------------------------------------------- statics
+
+def test_pure_bending(examples):
+    s, _ = examples["pure_bending"].result()
+    assert s["converged"] and s["torques_Nm"] == [1.0, 2.0, 3.0, 4.0, 5.0]
+    for tau, tip in zip(s["torques_Nm"], s["tips_m"]):
+        k = tau / 1.0                                   # EI_y = 1 N m^2, L = 1 m
+        exact = [math.sin(k) / k, 0.0, -(1 - math.cos(k)) / k]
+        assert np.linalg.norm(np.subtract(tip, exact)) < 1e-8
+    assert s["max_position_error_rel"] < 1e-8
+    assert s["max_rotation_error"] < 1e-8
+    assert s["max_interpolation_error_rel"] < 1e-8
+
+
+# ------------------------------------------------------------------------------ dynamics
+
+def test_free_planar_rotation(examples):
+    s, _ = examples["free_planar_rotation"].result()
+    assert s["converged"]
+    c0 = math.sqrt(2.7e3 / 6.9e10)                      # = sqrt(2.7e-3 / 6.9e7), seed
+    assert [c["omega_rad_s"] for c in s["cases"]] == pytest.approx([math.pi, 2 * math.pi,
+                                                                     3 * math.pi])
+    for case in s["cases"]:
+        w, t = case["omega_rad_s"], s["t_end_s"]
+        xi_L = math.tan(c0 * w / 2) / (c0 * w)          # S79 at s = L = 1 m
+        exact_B = np.array([0.5, 0, 0]) + xi_L * np.array([math.cos(w * t), 0, -math.sin(w * t)])
+        assert case["exact_tip_stretch_m"] == pytest.approx(xi_L - 0.5, rel=1e-6)
+        assert np.linalg.norm(np.subtract(case["node_B_final_m"], exact_B)) < 1e-4   # 0.01 % of L
+        assert case["max_error_percent"] < 0.01        # seed: < 0.1 %
+
+
+def _helical_checks(s, max_force, stiffness, energy_tolerance):
+    assert s["converged"] and s["tip_finite"]
+    assert s["t_end_s"] == pytest.approx(3.0)
+    # |d_U| / L - 1 is bounded by the axial/shear strain |n| / min(EA, kGA)
+    assert s["max_length_change_rel"] < 1.05 * max_force / min(stiffness[:3])
+    # work of the tip loads = kinetic + strain energy (rho_inf = 0.9 dissipates a little)
+    assert s["energy_balance_rel"] < energy_tolerance
+    assert s["work_final_J"] > 0
+
+
+def test_helical_motion(examples):
+    s, out = examples["helical_motion"].result()
+    _helical_checks(s, 2.0, [1e3, 1e3, 1e3], 2e-3)        # measured 2e-4
+    # the motion is three-dimensional (seed Fig. 6): the tip moves in x, y and z
+    assert min(s["tip_max_abs_m"]) > 0.3 * s["length_m"]
+    gif = out / "helical_motion.gif"
+    assert gif.read_bytes()[:6] in (b"GIF87a", b"GIF89a")
+
+
+def test_spring_steel_rod_follows_quasi_static_path(examples):
+    s, _ = examples["spring_steel_rod"].result()
+    K, _ = circle_constants(210e9, 0.3, 7850.0, 2e-3)
+    F, M = np.array([0.0, 0.0, 0.14 * 3]), np.array([0.0, 0.0, 0.49 * 3])
+    _helical_checks(s, 0.42, K, 1e-2)                     # measured 4e-4
+    # loaded over ~17 first-mode periods: near the quasi-static equilibrium at 3 s
+    L = 0.5
+
+    def tip_of(ptip, lam):
+        def rhs(_, y):
+            R, p = y[:9].reshape(3, 3), y[9:]
+            m = lam * (M + np.cross(ptip - p, F))      # world moment, n = lam F
+            gamma = np.array([1.0, 0, 0]) + R.T @ (lam * F) / K[:3]
+            return np.concatenate([(R @ hat(R.T @ m / K[3:])).ravel(), R @ gamma])
+        y0 = np.concatenate([np.eye(3).ravel(), np.zeros(3)])
+        return scipy_integrate.solve_ivp(rhs, (0.0, L), y0, rtol=1e-10, atol=1e-12).y[9:, -1]
+
+    ptip = np.array([L, 0.0, 0.0])
+    for lam in (0.25, 0.5, 0.75, 1.0):
+        ptip = scipy_optimize.fsolve(lambda q: tip_of(q, lam) - q, ptip, xtol=1e-12)
+    assert np.linalg.norm(np.subtract(s["tip_final_m"], ptip)) < 4e-2 * L   # measured 1.6e-2
+
+
+def test_silicone_body(examples):
+    s, _ = examples["silicone_body"].result()
+    K, _ = circle_constants(110e3, 0.5, 1080.0, 0.05)
+    _helical_checks(s, 0.1035 * 3, K, 1e-3)   # measured 1.4e-5
+
+
+def test_magellan_catheter_is_quasi_static(examples):
+    s, _ = examples["magellan_catheter"].result()
+    assert s["converged"] and s["units"] == "N m"
+    E, G = 210e9, 210e9 / 2.6
+
+    def tube(do, di):
+        I = math.pi * (do**4 - di**4) / 64
+        return np.array([2 * G * I, E * I, E * I])      # GJ, EI, EI
+
+    tau2, tau3 = np.array(s["tau2_final_Nm"]), np.array(s["tau3_final_Nm"])
+    np.testing.assert_allclose(tau2, [0.4, 4.0, 40.0])
+    np.testing.assert_allclose(tau3, [-0.15, -1.5, -15.0])
+    pieces = [(s["guide_length_m"], tube(3.48e-3, 2.54e-3), tau2 + tau3),
+              (s["leader_length_m"], tube(2.13e-3, 1.0e-3), tau3)]
+    # end moments only: n = 0, the internal moment is m (world) on each piece, so
+    # R' = R (C^-1 R^T m)^, p' = R e1 from the clamp
+    y = np.concatenate([np.eye(3).ravel(), np.zeros(3)])
+    for length, C, m in pieces:
+        def rhs(_, y, C=C, m=m):
+            R = y[:9].reshape(3, 3)
+            return np.concatenate([(R @ hat(R.T @ m / C)).ravel(), R[:, 0]])
+        y = scipy_integrate.solve_ivp(rhs, (0.0, length), y, rtol=1e-11, atol=1e-13).y[:, -1]
+    L = s["guide_length_m"] + s["leader_length_m"]
+    np.testing.assert_allclose(s["quasi_static_tip_m"], y[9:], atol=1e-7 * L)
+    assert np.linalg.norm(np.subtract(s["tip_final_m"], y[9:])) < 2e-3 * L   # measured 4e-4
+    # both segments bend by about 2 rad (visible curling, as in Fig. 20)
+    assert 1.5 < s["guide_turn_rad"] < 2.6 and 1.5 < s["leader_turn_rad"] < 2.6
+
+
+def test_bending_actuator(examples):
+    s, _ = examples["bending_actuator"].result()
+    r, E, L = 0.01, 110e3, 0.15
+    EI_y = E * (math.pi / 8 - 8 / (9 * math.pi)) * r**4    # half disc, axis parallel to flat side
+    assert s["converged"]
+    assert s["EI_y_Nm2"] == pytest.approx(EI_y, rel=1e-12)
+    assert s["quasi_static_angle_final_rad"] == pytest.approx(0.002 * L / EI_y, rel=1e-12)
+    assert s["max_out_of_plane_rel"] < 1e-12 and s["max_twist"] < 1e-12
+    assert s["energy_balance_rel"] < 1e-3                 # measured 7e-5
+    assert s["tip_final_m"][2] < -0.5 * L                 # curls towards the flat side (-z)
+    assert 0.8 < s["tip_angle_final_rad"] / s["quasi_static_angle_final_rad"] < 1.4
