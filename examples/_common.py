@@ -53,18 +53,16 @@ def write_summary(out: Path, summary: dict) -> Path:
 
 def profile_value(profile: dict, t):
     """Scale of a scene load's time law at times ``t`` (s), written out from the
-    scene-format contract: constant 1, linear ``rate t``, ramp and smoothstep
-    (``3x^2 - 2x^3``) between t0 and t1."""
+    scene-format contract for the laws the examples use: constant 1, linear ``rate t``
+    and smoothstep (``3x^2 - 2x^3`` of ``x = (t - t0)/(t1 - t0)`` clipped to [0, 1])."""
     t = np.asarray(t, float)
     kind = profile.get("kind", "constant")
     if kind == "constant":
         return np.ones_like(t)
     if kind == "linear":
         return profile["rate"] * t
-    x = np.clip((t - profile["t0"]) / (profile["t1"] - profile["t0"]), 0.0, 1.0)
-    if kind == "ramp":
-        return x
     if kind == "smoothstep":
+        x = np.clip((t - profile["t0"]) / (profile["t1"] - profile["t0"]), 0.0, 1.0)
         return x * x * (3.0 - 2.0 * x)
     raise ValueError(f"profile.kind: {kind!r} not handled by the examples")
 

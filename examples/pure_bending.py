@@ -74,7 +74,8 @@ def main():
         p_s, R_s = plotting.sample_result(res, "arm", 8)
         # the interpolated curve lies on the exact circle: |p - centre| = 1/kappa
         centre = np.array([0.0, 0.0, -EI / tau])
-        curve_err = max(curve_err, np.abs(np.linalg.norm(p_s - centre, axis=1) - EI / tau).max() / L)
+        radius_err = np.abs(np.linalg.norm(p_s - centre, axis=1) - EI / tau).max()
+        curve_err = max(curve_err, radius_err / L)
         shapes.append(p_s)
         frames.append(R_s)
         exact_curves.append(exact_arc(tau, fine_s)[0])

@@ -41,6 +41,8 @@ def test_notebooks_exist():
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
 def test_notebook_runs_in_fast_mode(path, tmp_path, tmp_path_factory):
+    """The code cells run in order in one namespace without error (the notebooks check
+    their own numbers with asserts against references they compute)."""
     # the folder of lane 0 of tests/test_examples.py (that module's runs are over by now):
     # the notebooks reuse its compiled pure-bending and helical programs
     cache = tmp_path_factory.getbasetemp() / "jax_compilation_cache"
@@ -52,8 +54,6 @@ def test_notebook_runs_in_fast_mode(path, tmp_path, tmp_path_factory):
                           env=env, capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, f"{path.name} failed:\n{proc.stdout}\n{proc.stderr}"
     assert "NOTEBOOK COMPLETED" in proc.stdout
-    figures = list(tmp_path.glob("*.png"))
-    assert figures and all(f.stat().st_size > 0 for f in figures)
 
 
 def _assert_stripped(notebook: dict, name: str):
