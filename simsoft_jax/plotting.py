@@ -106,8 +106,8 @@ def ribbon_vertices(positions, rotations, width, axis=1):
     ``[minus_e, plus_e, plus_e+1, minus_e+1]``. ``axis`` 1 (local y) or 2 (local z).
     """
     p, R = _frames(positions, rotations, stacked=False)
-    if axis not in (0, 1, 2):
-        raise ValueError(f"axis: must be 0, 1 or 2, got {axis!r}")
+    if axis not in (1, 2):
+        raise ValueError(f"axis: must be 1 (local y) or 2 (local z), got {axis!r}")
     if not width > 0:
         raise ValueError(f"width: must be > 0, got {width!r}")
     offset = 0.5 * width * R[0, :, :, axis]
@@ -115,10 +115,10 @@ def ribbon_vertices(positions, rotations, width, axis=1):
     return np.stack([minus[:-1], plus[:-1], plus[1:], minus[1:]], axis=1)
 
 
-def _draw_rod(ax, p, R, color, width, axis, triads, label, lw=2.0):
+def _draw_rod(ax, p, R, color, width, axis, triads, label):
     """One configuration: centreline, ribbon (with its two edge lines, gids
     ``ribbon_minus`` / ``ribbon_plus``) and optional triads."""
-    ax.plot(*p.T, color=color, lw=lw, label=label)
+    ax.plot(*p.T, color=color, lw=2.0, label=label)
     if R is None:
         return
     quads = ribbon_vertices(p, R, width, axis)

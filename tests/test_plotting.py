@@ -109,6 +109,7 @@ def test_triads_and_equal_aspect():
     (lambda p, R: plotting.plot_rod(p * np.nan), "positions"),
     (lambda p, R: plotting.ribbon_vertices(p, R, 0.0), "width"),
     (lambda p, R: plotting.ribbon_vertices(p, R, 0.1, axis=3), "axis"),
+    (lambda p, R: plotting.ribbon_vertices(p, R, 0.1, axis=0), "axis"),
     (lambda p, R: plotting.plot_configurations(p, R), "positions"),
     (lambda p, R: plotting.plot_configurations(p[None], R), "rotations"),
     (lambda p, R: plotting.plot_configurations(p[None], labels=["a", "b"]), "labels"),
