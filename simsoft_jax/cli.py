@@ -1,8 +1,17 @@
-"""Command line: ``simsoft-jax run SCENE -o OUT.json|.npz`` and ``simsoft-jax validate SCENE``."""
+"""Command line: ``simsoft-jax run | validate | princeton | calibrate``.
+
+* ``run SCENE -o OUT.json|.npz``: solve a scene (exit 1 if not converged, 2 if invalid);
+* ``validate SCENE``: check a scene file without solving it;
+* ``princeton``: the 25 load cases of the Princeton beam, a results table and figures
+  (seed Figs. 15-18 when ``--measurements`` are given);
+* ``calibrate --scenes S... --measurements M.csv --params EIy,EIz,GJ -o fitted.json``:
+  fit sectional parameters to measured positions.
+"""
 from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 
 def _run(args) -> int:
@@ -46,6 +55,68 @@ def _validate(args) -> int:
     return 0
 
 
+def _princeton(args) -> int:
+    from . import princeton
+    from .princeton_figures import all_figures
+    try:
+        stations = [float(v) for v in args.stations.split(",")]
+        measured = (princeton.read_measurements(args.measurements) if args.measurements
+                    else None)
+        if measured is not None:
+            errors = princeton.errors(measured, args.elements, not args.no_gravity,
+                                      args.relative)
+            replay = errors.replay
+        else:
+            errors = None
+            replay = princeton.replay(elements=args.elements, gravity=not args.no_gravity,
+                                      relative=args.relative, stations=stations)
+    except (ValueError, RuntimeError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    table = princeton.write_table(out / "princeton_replay.csv", replay, errors)
+    figures = all_figures(replay, out, errors)
+    print(f"Princeton replay: {len(replay.theta_deg)} cases, {args.elements} elements, "
+          f"gravity {'off' if args.no_gravity else 'on'}, deflections "
+          f"{'relative to self-weight' if args.relative else 'absolute'}; "
+          f"all converged: {bool(replay.converged.all())}")
+    print(" theta  load/f0   tip y [mm]   tip z [mm]" + ("   e_mu [%]  tip e [%]" if errors else ""))
+    for c in range(len(replay.theta_deg)):
+        line = (f"{replay.theta_deg[c]:6g}  {replay.load_N[c] / princeton.F0:7.3g}  "
+                f"{1e3 * replay.deflection[c, -1, 0]:11.4f}  {1e3 * replay.deflection[c, -1, 1]:11.4f}")
+        if errors is not None:
+            line += f"  {errors.e_mu[c]:9.4f}  {errors.tip[c]:9.4f}"
+        print(line)
+    if errors is not None:
+        print(f"average mean error {errors.e_mu.mean():.4f} % +- {errors.e_mu.std():.4f}; "
+              f"average tip error {errors.tip.mean():.4f} % +- {errors.tip.std():.4f}")
+    print("wrote " + ", ".join(str(p) for p in [table, *figures]))
+    return 0 if replay.converged.all() else 1
+
+
+def _calibrate(args) -> int:
+    import json
+    from .calibration import fit_static
+    from .measurements import static_targets
+    from .scene import load_scene
+    try:
+        scenes = [load_scene(path) for path in args.scenes]
+        targets = static_targets(args.measurements, scenes)
+        fit = fit_static(targets, args.params, max_steps=args.max_steps)
+    except (ValueError, RuntimeError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    for name, scale, std in zip(fit.params, fit.scale, fit.std):
+        print(f"{name:>9s} = {fit.values[name]:.6g}  (x {scale:.5f} +- {std:.5f} of the scenes' value)")
+    print(f"rms residual {fit.rms:.4g} m over {len(fit.residuals)} measured components; "
+          f"loss {fit.loss_history[0]:.4g} -> {fit.loss_history[-1]:.4g} m^2 in {fit.iterations} steps")
+    if args.output:
+        Path(args.output).write_text(json.dumps(fit.to_dict(), indent=1))
+        print(f"wrote {args.output}")
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="simsoft-jax", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -56,6 +127,23 @@ def main(argv=None) -> int:
     p_val = sub.add_parser("validate", help="check a scene file without solving it")
     p_val.add_argument("scene")
     p_val.set_defaults(func=_validate)
+    p_pr = sub.add_parser("princeton", help="replay the 25 Princeton load cases (table + figures)")
+    p_pr.add_argument("--elements", type=int, default=16)
+    p_pr.add_argument("--no-gravity", action="store_true", help="leave the beam's weight out")
+    p_pr.add_argument("--relative", action="store_true",
+                      help="deflections relative to the self-weight state")
+    p_pr.add_argument("--stations", default="0.25,0.5,0.75,1",
+                      help="stations r/L, comma separated (default 0.25,0.5,0.75,1)")
+    p_pr.add_argument("--measurements", help="measured deflections CSV (simsoft_jax.princeton)")
+    p_pr.add_argument("--out", default="out/princeton", help="output folder")
+    p_pr.set_defaults(func=_princeton)
+    p_cal = sub.add_parser("calibrate", help="fit section parameters to measured positions")
+    p_cal.add_argument("--scenes", nargs="+", required=True, help="static scene files")
+    p_cal.add_argument("--measurements", required=True, help="CSV: scene,rod,node,x,y,z")
+    p_cal.add_argument("--params", required=True, help="e.g. EIy,EIz,GJ (or E,G)")
+    p_cal.add_argument("--max-steps", type=int, default=100)
+    p_cal.add_argument("-o", "--output", help="fitted parameters (.json)")
+    p_cal.set_defaults(func=_calibrate)
     args = parser.parse_args(argv)
     return args.func(args)
 

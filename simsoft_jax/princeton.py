@@ -1,0 +1,342 @@
+"""The Princeton beam experiment (seed "Experimental validation"; spec algorithm.md §7.1).
+
+An Al 7075 strip (L = 0.508 m, b = 3.2024 mm along local y, h = 12.377 mm along local z)
+is clamped with its root pitched by ``theta`` about the beam axis; a weight hangs from the
+tip and gravity acts on the beam. Both are vertical in the laboratory, so in the root
+section's axes (the frame this module works in: beam along +x, the unpitched section
+axes y, z) they point along ``(0, -sin theta, -cos theta)``:
+
+* theta = 0 loads the stiff direction (edgewise, ``EI_y``: motion in x-z);
+* theta = 90 deg loads the flexible direction (flapwise, ``EI_z``: motion in x-y).
+
+The seed's 25 load cases (f0 = 4.448 N = 1 lbf) are :data:`LOAD_CASES`. Deflections are the
+displacements ``(y, z)`` of the centroid at stations ``r_i`` along the beam, in the root
+section's axes, either absolute or relative to the self-weight state (the seed does not say
+which one the experiment reports; spec §7.1). All cases are solved in one compiled,
+vmapped call (:func:`replay`).
+
+Error measure (seed eq. 112): ``e_i = (|y(r_i) - y_ei| + |z(r_i) - z_ei|) / r_i * 100 %``;
+per case ``e_mu`` and ``e_sigma`` are the mean and standard deviation of the four ``e_i`` and
+the tip error is ``e_i`` at ``r = L`` (:func:`errors`).
+
+Measured data are read by :func:`read_measurements` from a CSV file with the columns
+
+    theta_deg, load_N, station_m, y_m, z_m [, y_neg_theta_m, z_neg_theta_m]
+
+(header required, one row per case and station, deflections in metres in the root
+section's axes). ``y_m, z_m`` are the deflections measured with the root pitched by
++theta. The optional ``*_neg_theta_m`` columns are the raw deflections measured at -theta,
+each in that run's own root axes; the -theta set-up is the mirror image (y -> -y) of the
++theta one, so the averaged deflections used by eq. (112) are
+``y_e = (y - y_neg) / 2`` and ``z_e = (z + z_neg) / 2`` (the seed's "averaged experimental
+deflections"; its Fig. 15 shows both signs).
+"""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from typing import NamedTuple, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import kinematics
+from .model import Model, build_model
+from .scene import Scene
+from .statics import StaticSettings
+from .sweeps import grid, static_sweep
+
+LENGTH = 0.508             # m (20 in)
+WIDTH = 3.2024e-3          # m, b, along local y
+HEIGHT = 12.377e-3         # m, h, along local z
+SHEAR_COEFFICIENTS = (0.590, 0.833)   # k_y, k_z (seed eq. 110, its ref. 60)
+F0 = 4.448                 # N (1 lbf)
+GRAVITY = 9.81             # m/s^2
+DEFAULT_STATIONS = (0.25, 0.5, 0.75, 1.0)   # r_i / L (spec §7.1: not stated in the seed)
+
+# (theta in degrees, load in units of f0): theta = 0, 15, 30: f0..4 f0; 45: f0..3 f0;
+# 60: f0/2..2 f0; 75, 90: f0/2..3/2 f0 (seed "Experimental setup"; 25 cases)
+LOAD_CASES = tuple(
+    [(th, k) for th in (0.0, 15.0, 30.0) for k in (1.0, 2.0, 3.0, 4.0)]
+    + [(45.0, k) for k in (1.0, 2.0, 3.0)]
+    + [(60.0, k) for k in (0.5, 1.0, 1.5, 2.0)]
+    + [(th, k) for th in (75.0, 90.0) for k in (0.5, 1.0, 1.5)])
+
+
+def seed_cases() -> tuple[np.ndarray, np.ndarray]:
+    """The seed's 25 load cases: ``(theta_deg (25,), load_N (25,))``."""
+    cases = np.array(LOAD_CASES)
+    return cases[:, 0], cases[:, 1] * F0
+
+
+def scene(elements: int = 16, gravity: bool = True, stiffness=None) -> Scene:
+    """The beam in its root section's axes with a placeholder tip force.
+
+    ``stiffness``: optional ``[EA, GAy, GAz, GJ, EIy, EIz]`` replacing the seed's section
+    values (eq. 110, from the rectangle, Al 7075 and k = (0.590, 0.833)). The load and
+    gravity directions of a case are set by :func:`case_model`, so one compiled solver
+    serves every case.
+    """
+    rod = {"name": "beam", "material": "aluminum_7075",
+           "section": {"shape": "rectangle", "width": WIDTH, "height": HEIGHT},
+           "shear_coefficients": list(SHEAR_COEFFICIENTS), "elements": int(elements),
+           "geometry": {"kind": "straight", "length": LENGTH}}
+    if stiffness is not None:
+        names = ("EA", "GAy", "GAz", "GJ", "EIy", "EIz")
+        rod["stiffness"] = dict(zip(names, map(float, np.asarray(stiffness, float))))
+    data = {"name": "princeton", "solver": {"kind": "static"},
+            "rods": [rod], "constraints": [{"kind": "clamp", "rod": "beam", "node": 0}],
+            "loads": [{"kind": "force", "rod": "beam", "node": -1,
+                       "vector": [0.0, 0.0, -1.0], "frame": "world"}]}
+    if gravity:
+        data["gravity"] = {"vector": [0.0, 0.0, -GRAVITY]}
+    return Scene.from_dict(data)
+
+
+def case_model(model: Model, theta_deg, load_N) -> Model:
+    """``model`` with the tip weight ``load_N`` (N) and gravity of the pitch ``theta_deg``.
+
+    Both act along ``(0, -sin theta, -cos theta)`` in the root section's axes (module
+    docstring). Traceable: ``theta_deg`` and ``load_N`` may be batched with ``jax.vmap``.
+    """
+    th = jnp.deg2rad(jnp.asarray(theta_deg, jnp.float64))
+    down = jnp.stack([0.0 * th, -jnp.sin(th), -jnp.cos(th)])
+    nodal = jnp.zeros_like(model.nodal_dead).at[-1, :3].set(load_N * down)
+    return model.replace(nodal_dead=nodal, gravity=GRAVITY * down)
+
+
+def station_locations(model: Model, stations_m) -> tuple[np.ndarray, np.ndarray]:
+    """Element index and fraction of each station (m along the reference centreline)."""
+    stations = np.asarray(stations_m, float)
+    ends = np.cumsum(np.asarray(model.length))
+    if np.any(stations <= 0.0) or np.any(stations > ends[-1] * (1 + 1e-12)):
+        raise ValueError(f"stations: must lie in (0, {ends[-1]:.6g}] m, got {stations.tolist()}")
+    index = np.minimum(np.searchsorted(ends, stations * (1 - 1e-12)), len(ends) - 1)
+    starts = np.concatenate([[0.0], ends[:-1]])
+    return index, (stations - starts[index]) / np.asarray(model.length)[index]
+
+
+def station_deflections(R, p, index, fraction):
+    """Centroid displacement ``(y, z)`` (m) at stations given by :func:`station_locations`.
+
+    ``index`` (S,) element of each station, ``fraction`` (S,) position in it; the centroid
+    follows the element's helix (seed eq. 27), the reference centroid is ``(r, 0, 0)``
+    (root at the origin). Returns shape ``(S, 2)``.
+    """
+    index = np.asarray(index)
+    d = kinematics.element_twists(R, p)[index]
+    _, ps = jax.vmap(kinematics.frame_in_element)(R[index], p[index], d, jnp.asarray(fraction))
+    return ps[:, 1:]
+
+
+class Replay(NamedTuple):
+    """Simulated Princeton deflections. theta_deg, load_N (C,); stations_m (S,);
+    deflection (C, S, 2): (y, z) in m; converged (C,) bool; iterations (C,) Newton
+    iterations; relative: deflections measured from the self-weight state."""
+    theta_deg: np.ndarray
+    load_N: np.ndarray
+    stations_m: np.ndarray
+    deflection: np.ndarray
+    converged: np.ndarray
+    iterations: np.ndarray
+    relative: bool
+
+
+def _vary_case(model: Model, point: dict) -> Model:
+    """A sweep point ``{"theta": deg, "load": N}`` applied by :func:`case_model`."""
+    return case_model(model, point["theta"], point["load"])
+
+
+def replay(theta_deg=None, load_N=None, elements: int = 16, gravity: bool = True,
+           relative: bool = False, stations=DEFAULT_STATIONS, stiffness=None,
+           settings: StaticSettings = StaticSettings(), chunk: int | None = None) -> Replay:
+    """Solve the load cases in one vmapped call (one compile per batch size).
+
+    theta_deg, load_N: (C,) arrays (default: the seed's 25 cases, :func:`seed_cases`).
+    stations: r_i / L (default 0.25, 0.5, 0.75, 1). relative: subtract the self-weight
+    deflection of each angle (needs ``gravity``; the self-weight states are solved in
+    the same call). stiffness: optional section diagonal (see :func:`scene`). chunk:
+    points per vmapped batch (:func:`simsoft_jax.sweeps.static_sweep`).
+    """
+    if theta_deg is None and load_N is None:
+        theta_deg, load_N = seed_cases()
+    if theta_deg is None or load_N is None:
+        raise ValueError("theta_deg, load_N: give both or neither")
+    theta = np.atleast_1d(np.asarray(theta_deg, float))
+    load = np.atleast_1d(np.asarray(load_N, float))
+    if theta.shape != load.shape or theta.ndim != 1:
+        raise ValueError(f"theta_deg, load_N: need equal 1-D shapes, got {theta.shape} and {load.shape}")
+    if relative and not gravity:
+        raise ValueError("relative: deflections relative to the self-weight need gravity=True")
+    stations_m = np.asarray(stations, float) * LENGTH
+    model = build_model(scene(elements, gravity, stiffness))
+    index, fraction = station_locations(model, stations_m)
+    angles = np.unique(theta) if relative else np.zeros(0)
+    theta_all = np.concatenate([theta, angles])
+    load_all = np.concatenate([load, np.zeros_like(angles)])
+    # pad the batch to a power of two (repeating the last case): fewer distinct compiles
+    pad = (1 << (len(theta_all) - 1).bit_length()) - len(theta_all)
+    points = {"theta": np.pad(theta_all, (0, pad), mode="edge"),
+              "load": np.pad(load_all, (0, pad), mode="edge")}
+    eq = static_sweep(model, _vary_case, points, settings, chunk)
+    defl = np.asarray(jax.vmap(station_deflections, in_axes=(0, 0, None, None))(
+        eq.R, eq.p, index, fraction))
+    ok, its = np.asarray(eq.converged), np.asarray(eq.iterations)
+    C = len(theta)
+    out = defl[:C]
+    if relative:
+        out = out - defl[C + np.searchsorted(angles, theta)]
+        ok = ok[:C] & ok[C + np.searchsorted(angles, theta)]
+    return Replay(theta, load, stations_m, out, ok[:C], its[:C], relative)
+
+
+class Measurements(NamedTuple):
+    """Measured (averaged) Princeton deflections: theta_deg, load_N, station_m (rows,);
+    deflection (rows, 2): (y_e, z_e) in m."""
+    theta_deg: np.ndarray
+    load_N: np.ndarray
+    station_m: np.ndarray
+    deflection: np.ndarray
+
+
+_REQUIRED = ("theta_deg", "load_N", "station_m", "y_m", "z_m")
+_MIRRORED = ("y_neg_theta_m", "z_neg_theta_m")
+
+
+def read_measurements(path) -> Measurements:
+    """Read a measured-deflection CSV (layout in the module docstring)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"measurements: no such file {str(path)!r}")
+    with path.open(newline="") as handle:
+        reader = csv.DictReader(handle)
+        columns = reader.fieldnames or []
+        missing = [c for c in _REQUIRED if c not in columns]
+        if missing:
+            raise ValueError(f"measurements: {path.name} lacks column(s) {missing} "
+                             f"(need {list(_REQUIRED)}, optional {list(_MIRRORED)})")
+        mirrored = [c for c in _MIRRORED if c in columns]
+        if len(mirrored) == 1:
+            raise ValueError(f"measurements: {path.name} has {mirrored[0]} without its partner")
+        rows = []
+        for line, row in enumerate(reader, start=2):
+            values = []
+            for key in _REQUIRED + tuple(mirrored):
+                try:
+                    value = float(row[key])
+                except (TypeError, ValueError):
+                    raise ValueError(f"measurements: {path.name} line {line}, column {key}: "
+                                     f"not a number: {row[key]!r}") from None
+                if not np.isfinite(value):
+                    raise ValueError(f"measurements: {path.name} line {line}, column {key}: "
+                                     f"not finite")
+                values.append(value)
+            if values[2] <= 0.0 or values[2] > LENGTH * (1 + 1e-9):
+                raise ValueError(f"measurements: {path.name} line {line}, column station_m: "
+                                 f"{values[2]} is not in (0, {LENGTH}]")
+            rows.append(values)
+    if not rows:
+        raise ValueError(f"measurements: {path.name} has no data rows")
+    data = np.array(rows)
+    y, z = data[:, 3], data[:, 4]
+    if mirrored:
+        y, z = 0.5 * (y - data[:, 5]), 0.5 * (z + data[:, 6])
+    return Measurements(data[:, 0], data[:, 1], data[:, 2], np.stack([y, z], axis=1))
+
+
+def write_measurements(path, measurements: Measurements) -> Path:
+    """Write averaged deflections in the CSV layout that :func:`read_measurements` reads."""
+    path = Path(path)
+    with path.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(_REQUIRED)
+        for th, f, r, (y, z) in zip(*measurements):
+            writer.writerow([f"{th:.10g}", f"{f:.10g}", f"{r:.10g}", f"{y:.12g}", f"{z:.12g}"])
+    return path
+
+
+class Errors(NamedTuple):
+    """Seed eq. (112) per load case. theta_deg, load_N (C,); stations_m (S,);
+    e (C, S) in %; e_mu, e_sigma, tip (C,) in %; by_angle: {theta: (mean of e_mu,
+    std of e_mu, mean tip error, std of tip errors)} (Figs. 17-18); replay: the
+    simulated deflections at the measured cases and stations; measured (C, S, 2)."""
+    theta_deg: np.ndarray
+    load_N: np.ndarray
+    stations_m: np.ndarray
+    e: np.ndarray
+    e_mu: np.ndarray
+    e_sigma: np.ndarray
+    tip: np.ndarray
+    by_angle: dict
+    replay: Replay
+    measured: np.ndarray
+
+
+def _case_table(measured: Measurements):
+    """Cases (theta, load) and stations of the measurements, and the (C, S, 2) table."""
+    keys = np.round(np.stack([measured.theta_deg, measured.load_N], axis=1), 9)
+    cases, case_of = np.unique(keys, axis=0, return_inverse=True)
+    stations, station_of = np.unique(np.round(measured.station_m, 12), return_inverse=True)
+    table = np.full((len(cases), len(stations), 2), np.nan)
+    table[case_of.ravel(), station_of.ravel()] = measured.deflection
+    if np.isnan(table).any():
+        c, s = np.argwhere(np.isnan(table[..., 0]))[0]
+        raise ValueError(f"measurements: case theta={cases[c, 0]:g} deg, load={cases[c, 1]:g} N "
+                         f"has no row for station {stations[s]:g} m (every case needs every station)")
+    return cases, stations, table
+
+
+def errors(measured: Measurements, elements: int = 16, gravity: bool = True,
+           relative: bool = False, stiffness=None,
+           settings: StaticSettings = StaticSettings()) -> Errors:
+    """Simulate the measured cases at the measured stations and apply eq. (112)."""
+    cases, stations, table = _case_table(measured)
+    sim = replay(cases[:, 0], cases[:, 1], elements, gravity, relative,
+                 stations / LENGTH, stiffness, settings)
+    if not np.all(sim.converged):
+        bad = [(float(t), float(f)) for t, f, ok in zip(*cases.T, sim.converged) if not ok]
+        raise RuntimeError(f"Princeton replay: static solve not converged for (theta, load) {bad}")
+    e = 100.0 * np.abs(sim.deflection - table).sum(axis=2) / stations[None, :]
+    e_mu, e_sigma, tip = e.mean(axis=1), e.std(axis=1), e[:, -1]
+    by_angle = {}
+    for th in np.unique(cases[:, 0]):
+        sel = cases[:, 0] == th
+        by_angle[float(th)] = (float(e_mu[sel].mean()), float(e_mu[sel].std()),
+                               float(tip[sel].mean()), float(tip[sel].std()))
+    return Errors(cases[:, 0], cases[:, 1], stations, e, e_mu, e_sigma, tip, by_angle, sim, table)
+
+
+def load_angle_sweep(theta_deg: Sequence[float], load_N: Sequence[float], elements: int = 16,
+                     gravity: bool = True, settings: StaticSettings = StaticSettings(),
+                     chunk: int | None = None):
+    """Tip deflection over a load-angle x load-magnitude grid, one vmapped call.
+
+    Returns ``(tip (A, F, 2) (y, z) in m, converged (A, F))`` for ``A`` angles and ``F`` loads.
+    """
+    points = grid(theta=theta_deg, load=load_N)
+    sim = replay(points["theta"], points["load"], elements, gravity, False, (1.0,), None,
+                 settings, chunk)
+    shape = (len(theta_deg), len(load_N))
+    return sim.deflection[:, 0].reshape(shape + (2,)), sim.converged.reshape(shape)
+
+
+def write_table(path, replay: Replay, errors: Errors | None = None) -> Path:
+    """CSV of simulated deflections per case and station (m), with eq. (112) errors (%)
+    when ``errors`` is given (its replay is written then)."""
+    path = Path(path)
+    sim = errors.replay if errors is not None else replay
+    with path.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["theta_deg", "load_N", "station_m", "y_m", "z_m", "converged"]
+                        + (["y_measured_m", "z_measured_m", "error_percent"] if errors else []))
+        for c in range(len(sim.theta_deg)):
+            for s, r in enumerate(sim.stations_m):
+                row = [f"{sim.theta_deg[c]:g}", f"{sim.load_N[c]:.6g}", f"{r:.6g}",
+                       f"{sim.deflection[c, s, 0]:.9g}", f"{sim.deflection[c, s, 1]:.9g}",
+                       str(bool(sim.converged[c]))]
+                if errors is not None:
+                    row += [f"{errors.measured[c, s, 0]:.9g}", f"{errors.measured[c, s, 1]:.9g}",
+                            f"{errors.e[c, s]:.6g}"]
+                writer.writerow(row)
+    return path

@@ -1,0 +1,108 @@
+"""Batched parameter sweeps: many scenes that differ only in numbers, one compiled call.
+
+A sweep keeps the model structure (mesh, constraints, which loads exist) and varies
+arrays: loads, load angles, stiffness, gravity, time-law parameters, initial velocities.
+The user states how one point of the sweep changes the model with a function
+``vary(model, point) -> model`` (``point`` a dict of scalars or arrays, one entry of
+each swept array), and the sweep evaluates all points with ``jax.vmap`` (in chunks of
+``chunk`` points with :func:`jax.lax.map` to bound memory). The compiled program is cached
+per (structure, ``vary``, settings): define ``vary`` once (a module-level function, not a
+new lambda per call) to reuse it::
+
+    def vary(model, q):                      # Princeton map: angle and load of the tip weight
+        return princeton.case_model(model, q["theta"], q["load"])
+    points = sweeps.grid(theta=np.linspace(0, 90, 40), load=np.linspace(2, 18, 25))
+    eq = sweeps.static_sweep(model, vary, points)      # eq.p: (1000, N, 3)
+
+Every point runs the same Newton iterations as a single solve (a vmapped while-loop
+runs until the slowest point has converged; converged points are left unchanged).
+"""
+from __future__ import annotations
+
+from functools import partial
+from typing import Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .dynamics import DynamicSettings, Dynamics, Trajectory, simulate
+from .model import Model
+from .statics import Equilibrium, StaticSettings, solve_static
+
+
+def grid(**axes) -> dict:
+    """Cartesian product of named 1-D axes, flattened: ``{name: (prod of lengths,)}``.
+
+    The first axis varies slowest (``numpy.meshgrid(..., indexing="ij")`` order), so a
+    result of the sweep reshapes to ``(len(axis_1), len(axis_2), ...)``.
+    """
+    if not axes:
+        raise ValueError("grid: give at least one named axis")
+    values = []
+    for name, axis in axes.items():
+        axis = np.asarray(axis, float)
+        if axis.ndim != 1 or axis.size == 0:
+            raise ValueError(f"grid: axis {name!r} must be a non-empty 1-D array, got shape {axis.shape}")
+        values.append(axis)
+    meshes = np.meshgrid(*values, indexing="ij")
+    return {name: mesh.ravel() for name, mesh in zip(axes, meshes)}
+
+
+def _batch_size(points: dict) -> int:
+    if not isinstance(points, dict) or not points:
+        raise ValueError("points: need a non-empty dict of arrays with a leading batch axis")
+    sizes = {name: np.shape(value)[0] if np.ndim(value) else None for name, value in points.items()}
+    bad = [name for name, size in sizes.items() if size is None]
+    if bad:
+        raise ValueError(f"points: {bad[0]!r} has no leading batch axis (a scalar)")
+    if len(set(sizes.values())) != 1:
+        raise ValueError(f"points: every array needs the same leading length, got {sizes}")
+    return next(iter(sizes.values()))
+
+
+def _map(fn, points: dict, chunk: int | None):
+    size = _batch_size(points)
+    points = {name: jnp.asarray(value, jnp.float64) for name, value in points.items()}
+    if chunk is None or chunk >= size:
+        return jax.vmap(fn)(points)
+    return jax.lax.map(fn, points, batch_size=int(chunk))
+
+
+@partial(jax.jit, static_argnames=("vary", "settings", "chunk"))
+def _static(model, points, vary, settings, chunk):
+    return _map(lambda q: solve_static(vary(model, q), settings), points, chunk)
+
+
+def static_sweep(model: Model, vary: Callable, points: dict,
+                 settings: StaticSettings = StaticSettings(), chunk: int | None = None
+                 ) -> Equilibrium:
+    """Static equilibria of ``vary(model, point)`` for every point (one compile).
+
+    points: ``{name: (B, ...) array}``; returns an :class:`Equilibrium` whose arrays have
+    a leading batch axis ``B`` (``p`` (B, N, 3), ``converged`` (B,), ...). Differentiable
+    like :func:`solve_static`.
+    """
+    _batch_size(points)
+    return _static(model, points, vary, settings, chunk)
+
+
+@partial(jax.jit, static_argnames=("vary", "settings", "damped", "chunk"))
+def _dynamic(model, dyn, points, vary, settings, damped, chunk):
+    def one(q):
+        m, d = vary(model, dyn, q)
+        return simulate(m, d, settings, damped=damped)
+    return _map(one, points, chunk)
+
+
+def dynamic_sweep(model: Model, dyn: Dynamics, vary: Callable, points: dict,
+                  settings: DynamicSettings, damped: bool = True, chunk: int | None = None
+                  ) -> Trajectory:
+    """Rollouts of ``vary(model, dyn, point) -> (model, dyn)`` for every point.
+
+    ``vary`` may change Model arrays and Dynamics arrays (initial velocities ``v0``, the
+    load channels' time-law parameters). Returns a :class:`Trajectory` with a leading
+    batch axis ``B``: ``p`` (B, T, N, 3), ``converged`` (B,), ``failed_at`` (B,).
+    """
+    _batch_size(points)
+    return _dynamic(model, dyn, points, vary, settings, damped, chunk)
