@@ -228,6 +228,19 @@ def static_residual_fn(targets: Sequence[StaticTarget], names: Sequence[str],
     return residual_fn
 
 
+def evaluate(targets: Sequence[StaticTarget], params, scale=None,
+             settings: StaticSettings = StaticSettings()) -> np.ndarray:
+    """Residuals (simulated minus measured, m) of ``targets`` with the parameters
+    multiplied by ``scale`` (P,) (default 1: the scenes' values) — e.g. held-out error
+    before and after a fit (``scale=fit.scale``)."""
+    names = check_parameters(params)
+    x = np.zeros(len(names)) if scale is None else np.log(np.asarray(scale, float))
+    r, ok = jax.jit(static_residual_fn(targets, names, settings))(jnp.asarray(x))
+    if not bool(ok):
+        raise RuntimeError("calibration: a solve did not converge while evaluating targets")
+    return np.asarray(r)
+
+
 def fit_static(targets: Sequence[StaticTarget], params, x0=None, optimizer=None,
                max_steps: int = 100, gradient_tolerance: float = 1e-6,
                noise_std: float | None = None,
