@@ -21,11 +21,14 @@ HERE = Path(__file__).resolve().parent
 SCENES = HERE / "scenes"
 
 
-def parse_args(name: str, doc: str):
-    """``--out`` (Path, created) and ``--fast`` (bool) of example ``name``."""
+def parse_args(name: str, doc: str, extra=None):
+    """``--out`` (Path, created) and ``--fast`` (bool) of example ``name``; ``extra(parser)``
+    may add the example's own options."""
     parser = argparse.ArgumentParser(description=doc.strip().splitlines()[0])
     parser.add_argument("--out", default=f"out/{name}", help="output folder (default %(default)s)")
     parser.add_argument("--fast", action="store_true", help="small mesh / short run (tests)")
+    if extra is not None:
+        extra(parser)
     args = parser.parse_args()
     args.out = Path(args.out)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -245,6 +245,47 @@ def read_measurements(path) -> Measurements:
     return Measurements(data[:, 0], data[:, 1], data[:, 2], np.stack([y, z], axis=1))
 
 
+def read_published_tip(path, source_prefix: str = "ANSYS_solid") -> Measurements:
+    """Tip deflections of a published model as Princeton measurements at ``r = L``.
+
+    path: ``shared/data/princeton/model_predictions_tip.csv`` (its README: model output,
+    no gravity, dead tip force, unsigned flap and edge deflections); rows whose
+    ``source_id`` starts with ``source_prefix``. The flap deflection becomes ``-y`` and
+    the edge deflection ``-z`` (the loads of :func:`case_model` point along
+    ``(0, -sin theta, -cos theta)``).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"path: no such file {str(path)!r}")
+    with path.open(newline="") as handle:
+        rows = [r for r in csv.DictReader(handle)
+                if r.get("source_id", "").startswith(source_prefix)]
+    if not rows:
+        raise ValueError(f"source_prefix: no rows of {path.name} start with {source_prefix!r}")
+    theta = np.array([float(r["theta_deg"]) for r in rows])
+    load = np.array([float(r["load_N"]) for r in rows])
+    defl = -np.array([[float(r["flap_deflection_m"]), float(r["edge_deflection_m"])] for r in rows])
+    return Measurements(theta, load, np.full(len(rows), LENGTH), defl)
+
+
+def calibration_targets(measured: Measurements, model: Model) -> list:
+    """One :class:`~simsoft_jax.calibration.StaticTarget` per measured case of ``model``
+    (built by :func:`scene`): the (y, z) deflections at the stations, which must be
+    nodes; x is not measured."""
+    from .calibration import StaticTarget
+    ends = np.concatenate([[0.0], np.cumsum(np.asarray(model.length))])
+    cases, stations, table = _case_table(measured)
+    nodes = np.array([int(np.argmin(np.abs(ends - r))) for r in stations])
+    off = np.abs(ends[nodes] - stations) > 1e-9 * LENGTH
+    if off.any():
+        raise ValueError(f"stations: {stations[off].tolist()} m are not nodes of the "
+                         f"{len(ends) - 1}-element mesh")
+    mask = np.tile([False, True, True], (len(nodes), 1))
+    return [StaticTarget(case_model(model, th, f), nodes,
+                         np.concatenate([np.zeros((len(nodes), 1)), table[c]], axis=1), mask)
+            for c, (th, f) in enumerate(cases)]
+
+
 def write_measurements(path, measurements: Measurements) -> Path:
     """Write averaged deflections in the CSV layout that :func:`read_measurements` reads."""
     path = Path(path)

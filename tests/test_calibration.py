@@ -103,16 +103,13 @@ def test_identifiability_recovers_known_factors_within_two_sigma(beam):
 
 
 def _ansys_targets(beam, angles):
-    """ANSYS solid tip deflections as measured tip positions: flap along -y, edge along -z
-    (the loads of :func:`princeton.case_model` point along (0, -sin, -cos)); x unmeasured."""
-    targets = []
-    for load, rows in ANSYS_SOLID.items():
-        for th, (flap, edge) in zip(range(0, 91, 15), rows):
-            if th in angles:
-                targets.append(cal.StaticTarget(pr.case_model(beam, float(th), load), np.array([-1]),
-                                                np.array([[0.0, -flap, -edge]]),
-                                                np.array([[False, True, True]])))
-    return targets
+    """ANSYS solid tip deflections of ``angles`` as Princeton measurements at r = L."""
+    rows = [(float(th), load, flap, edge) for load, table in ANSYS_SOLID.items()
+            for th, (flap, edge) in zip(range(0, 91, 15), table) if th in angles]
+    theta, load, flap, edge = np.array(rows).T
+    measured = pr.Measurements(theta, load, np.full(len(rows), pr.LENGTH),
+                               -np.stack([flap, edge], axis=1))
+    return pr.calibration_targets(measured, beam)
 
 
 def test_ansys_solid_calibration_lowers_the_held_out_error(beam):

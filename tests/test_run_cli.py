@@ -11,7 +11,6 @@ along -z, i.e. along the height): Euler-Bernoulli tip deflection F L^3 / (3 E I_
 I_y = w h^3 / 12; the tip rotation is 2 % of a radian, so the linear formula holds to
 ~1e-4 relative (plus shear, F L / (k G A) ~ 5e-4 relative).
 """
-import copy
 import json
 import os
 import subprocess
