@@ -68,7 +68,7 @@ def main() -> int:
         fit_b = cal.fit_static(train, NAMES)
         error = lambda scale: 100 * np.abs(cal.evaluate(held, NAMES, scale)).reshape(-1, 2).sum(1) / pr.LENGTH  # noqa: E731
         before, after = error(None), error(fit_b.scale)
-        print(f"3b) fitted to ANSYS solid on 0/30/60/90 deg: "
+        print("3b) fitted to ANSYS solid on 0/30/60/90 deg: "
               + ", ".join(f"{n} = {fit_b.values[n]:.4g} (x{s:.3f})" for n, s in zip(NAMES, fit_b.scale)))
         print(f"    held-out tip error (15/45/75 deg): mean {before.mean():.3f} % -> "
               f"{after.mean():.3f} %, max {before.max():.3f} % -> {after.max():.3f} %")

@@ -62,19 +62,17 @@ def deflections(replay: Replay, path, measured: np.ndarray | None = None):
 
 
 def station_errors(errors: Errors, path):
-    """Fig. 16: e_i (%) at each station, one panel per angle, one line per load."""
+    """Fig. 16: per load case the mean error e_mu (%) with e_sigma as error bar, grouped
+    by loading angle (:func:`simsoft_jax.plotting.plot_error_bars`)."""
+    from .plotting import plot_error_bars
     plt = _pyplot()
     angles = np.unique(errors.theta_deg)
-    fig, axes = _panels(plt, angles)
-    for ax, th in zip(axes, angles):
-        for c in np.flatnonzero(errors.theta_deg == th):
-            ax.plot(errors.stations_m / errors.stations_m[-1], errors.e[c], "o-",
-                    label=f"{errors.load_N[c] / F0:g} f0")
-        ax.set_title(f"theta = {th:g} deg")
-        ax.set_xlabel("r / L")
-        ax.set_ylabel("e_i [%]")
-        ax.legend(fontsize=7)
-    fig.suptitle("Princeton beam: errors of eq. (112)")
+    rows = [np.flatnonzero(errors.theta_deg == th) for th in angles]
+    longest = max(rows, key=len)
+    labels = [f"load {k + 1}" for k in range(len(longest))]
+    fig = plot_error_bars([f"{th:g}" for th in angles], [errors.e_mu[r] for r in rows],
+                          [errors.e_sigma[r] for r in rows], case_labels=labels,
+                          title="Princeton beam: eq. (112) errors per load case (increasing load)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
