@@ -1,6 +1,7 @@
 """Command line: ``simsoft-jax run | validate | princeton | calibrate``.
 
-* ``run SCENE -o OUT.json|.npz``: solve a scene (exit 1 if not converged, 2 if invalid);
+* ``run SCENE -o OUT.json|.npz [--plot F.png] [--animate F.gif]``: solve a scene (exit 1
+  if not converged, 2 if invalid), with a progress line on stderr for dynamic runs;
 * ``validate SCENE``: check a scene file without solving it;
 * ``princeton``: the 25 load cases of the Princeton beam, a results table and figures
   (seed Figs. 15-18 when ``--measurements`` are given);
@@ -12,6 +13,8 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+
+import numpy as np
 
 
 def _run(args) -> int:
@@ -28,6 +31,12 @@ def _run(args) -> int:
         print(file=sys.stderr)  # end the progress line
     if args.output:
         result.save(args.output)
+    if args.plot or args.animate:
+        try:
+            _figures(result, args.plot, args.animate)
+        except (ValueError, RuntimeError) as err:
+            print(f"error: {err}", file=sys.stderr)
+            return 2
     if result.converged:
         status = "converged"
     elif result.time is not None:
@@ -41,6 +50,38 @@ def _run(args) -> int:
           f"compile {result.compile_time_s:.2f} s"
           + (f"; wrote {args.output}" if args.output else ""))
     return 0 if result.converged else 1
+
+
+def _figures(result, plot, animate):
+    """``--plot``: the final shape (static) or six time snapshots (dynamic) of every rod;
+    ``--animate``: the motion of the first rod (GIF, or MP4 with ffmpeg)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from . import plotting
+    rods = [r.name for r in result.model.structure.rods]
+    if animate and result.time is None:
+        raise ValueError("--animate: needs a dynamic scene (a static result has no motion)")
+    if plot:
+        fig = None
+        for k, rod in enumerate(rods):
+            ax = None if fig is None else fig.axes[0]
+            color = f"C{k}"
+            if result.time is None:
+                fig = plotting.plot_result(result, rod, ax=ax, color=color, label=rod,
+                                           title=result.name)
+            elif k == 0:
+                fig = plotting.plot_result_snapshots(result, rod, title=result.name)
+            else:
+                p, R = plotting.sample_result(result, rod)
+                idx = np.unique(np.linspace(0, len(p) - 1, 6).round().astype(int))
+                plotting.plot_configurations(p[idx], R[idx], ax=ax)
+        fig.savefig(plot, dpi=120, bbox_inches="tight")
+        plt.close(fig)
+        print(f"wrote {plot}")
+    if animate:
+        plotting.animate_result(result, rods[0], animate)
+        print(f"wrote {animate}" + (f" (rod {rods[0]!r} of {len(rods)})" if len(rods) > 1 else ""))
 
 
 def _validate(args) -> int:
@@ -123,6 +164,8 @@ def main(argv=None) -> int:
     p_run = sub.add_parser("run", help="solve a scene file and optionally write the result")
     p_run.add_argument("scene", help="scene file (.toml or .json)")
     p_run.add_argument("-o", "--output", help="result file (.json or .npz)")
+    p_run.add_argument("--plot", help="figure of the solution (.png, .pdf, .svg)")
+    p_run.add_argument("--animate", help="animation of a dynamic run (.gif, or .mp4 with ffmpeg)")
     p_run.set_defaults(func=_run)
     p_val = sub.add_parser("validate", help="check a scene file without solving it")
     p_val.add_argument("scene")

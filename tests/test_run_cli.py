@@ -197,9 +197,9 @@ def test_cli_run_writes_json_and_npz(result, tmp_path, cli_env):
     scene.write_text(toml_text(scene_dict()))
     out_json, out_npz = tmp_path / "out.json", tmp_path / "out.npz"
     for out in (out_json, out_npz):
-        proc = cli(cli_env, "run", scene, "-o", out)
+        proc = cli(cli_env, "run", scene, "-o", out, "--plot", out.with_suffix(".png"))
         assert proc.returncode == 0, proc.stderr
-        assert out.exists()
+        assert out.exists() and out.with_suffix(".png").stat().st_size > 5000
     d = json.loads(out_json.read_text())
     assert set(d) == CONTRACT_KEYS
     assert d["converged"] is True and d["kind"] == "static"
@@ -239,6 +239,25 @@ def test_cli_validate(tmp_path, cli_env):
     proc = cli(cli_env, "validate", bad)
     assert proc.returncode == 2
     assert "loads[0].node" in proc.stderr
+
+
+def test_cli_run_plots_and_animates_a_dynamic_scene(tmp_path, cli_env):
+    """``run --plot --animate``: snapshots and a GIF of a short dynamic run; asking for an
+    animation of a static scene is an input error (exit 2)."""
+    d = scene_dict()
+    d["solver"] = {"kind": "dynamic", "dt": 0.002, "t_end": 0.02}
+    d["rods"][0]["elements"] = 2
+    scene = tmp_path / "dyn.json"
+    scene.write_text(json.dumps(d))
+    png, gif = tmp_path / "dyn.png", tmp_path / "dyn.gif"
+    proc = cli(cli_env, "run", scene, "--plot", png, "--animate", gif)
+    assert proc.returncode == 0, proc.stderr
+    assert png.stat().st_size > 5000
+    assert gif.read_bytes()[:6] in (b"GIF87a", b"GIF89a")
+    static = tmp_path / "static.json"
+    static.write_text(json.dumps(scene_dict()))
+    proc = cli(cli_env, "run", static, "--animate", gif)
+    assert proc.returncode == 2 and "--animate: needs a dynamic scene" in proc.stderr
 
 
 def test_cli_nonconverged_writes_file_and_fails(tmp_path, cli_env):
