@@ -286,17 +286,6 @@ def calibration_targets(measured: Measurements, model: Model) -> list:
             for c, (th, f) in enumerate(cases)]
 
 
-def write_measurements(path, measurements: Measurements) -> Path:
-    """Write averaged deflections in the CSV layout that :func:`read_measurements` reads."""
-    path = Path(path)
-    with path.open("w", newline="") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(_REQUIRED)
-        for th, f, r, (y, z) in zip(*measurements):
-            writer.writerow([f"{th:.10g}", f"{f:.10g}", f"{r:.10g}", f"{y:.12g}", f"{z:.12g}"])
-    return path
-
-
 class Errors(NamedTuple):
     """Seed eq. (112) per load case. theta_deg, load_N (C,); stations_m (S,);
     e (C, S) in %; e_mu, e_sigma, tip (C,) in %; by_angle: {theta: (mean of e_mu,
