@@ -111,7 +111,7 @@ def work_energy_balance(result, scene: dict, rod: str, twists=None):
     """
     time = result.time
     R = result.rotations(rod)
-    v = np.asarray(result.raw.v)
+    v = result.velocities(rod)
     power = np.zeros_like(time)
     for load in scene["loads"]:
         if load["rod"] != rod or load.get("frame", "world") != "world":

@@ -81,6 +81,13 @@ class Result:
         local axes in world coordinates."""
         return self._R[..., self._nodes(rod), :, :].copy()
 
+    def velocities(self, rod: str) -> np.ndarray:
+        """Body velocities ``[v; omega]`` of ``rod``'s sections in their local axes (m/s,
+        rad/s), (T, nodes, 6); dynamic results only (world velocities: ``R @ v``)."""
+        if self.time is None:
+            raise ValueError("velocities: a static result has none (run a dynamic scene)")
+        return np.asarray(self.raw.v)[:, self._nodes(rod)].copy()
+
     def to_dict(self) -> dict:
         """The result-file layout of the scene-format contract (plain Python types)."""
         d = {"name": self.name, "kind": self.kind, "converged": self.converged,
