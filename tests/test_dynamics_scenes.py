@@ -132,10 +132,10 @@ def test_helical_scene_runs_converged_at_seed_time_step(helical_runs, name):
 
 
 def test_result_velocities_are_the_rate_of_the_positions(helical_runs):
-    """Result.velocities: world velocity ``R v`` of every node equals the central
-    difference of its positions (O(dt^2); dt = 2.5 ms saved every 10 ms is not used:
-    compare the dt = 0.0025 run at its saved spacing 0.01 s, so allow 1e-3 relative),
-    and the clamped node is at rest."""
+    """Result.velocities: the world velocity ``R v`` of every node equals the central
+    difference of its saved positions (spacing h = 0.01 s: truncation h^2/6 times the
+    third time derivative, about 1e-3 of the largest speed here, so 5e-3 is allowed; a
+    wrong frame or sign would be O(1)), and the clamped node is at rest."""
     r = helical_runs["helical_synthetic", 0.0025]
     v = r.velocities("rod")
     assert v.shape == (len(r.time), 11, 6)
@@ -143,7 +143,7 @@ def test_result_velocities_are_the_rate_of_the_positions(helical_runs):
     world = np.einsum("tnij,tnj->tni", r.rotations("rod"), v[:, :, :3])
     p, h = r.positions("rod"), r.time[1] - r.time[0]
     rate = (p[2:] - p[:-2]) / (2 * h)
-    assert np.abs(world[1:-1] - rate).max() < 1e-3 * np.abs(rate).max() + 1e-9
+    assert np.abs(world[1:-1] - rate).max() < 5e-3 * np.abs(rate).max()
     with pytest.raises(ValueError, match="velocities: a static result"):
         sj.run("examples/scenes/cantilever_tip_force.toml").velocities("beam")
 
