@@ -1,4 +1,4 @@
-"""Command line: ``simsoft-jax run | validate | princeton | calibrate``.
+"""Command line: ``simsoft-jax run | validate | princeton | calibrate | bench``.
 
 * ``run SCENE -o OUT.json|.npz [--plot F.png] [--animate F.gif]``: solve a scene (exit 1
   if not converged, 2 if invalid), with a progress line on stderr for dynamic runs;
@@ -6,7 +6,9 @@
 * ``princeton``: the 25 load cases of the Princeton beam, a results table and figures
   (seed Figs. 15-18 when ``--measurements`` are given);
 * ``calibrate --scenes S... --measurements M.csv --params EIy,EIz,GJ -o fitted.json``:
-  fit sectional parameters to measured positions.
+  fit sectional parameters to measured positions;
+* ``bench [--quick] [--only NAMES] [--out DIR]``: the benchmark suite of the source
+  checkout (tables, plots, JSON; see benchmarks/README.md).
 """
 from __future__ import annotations
 
@@ -158,8 +160,23 @@ def _calibrate(args) -> int:
     return 0
 
 
+def _bench(args) -> int:
+    """Run ``benchmarks/run_all.py`` of the source checkout this package is installed from."""
+    import importlib.util
+    script = Path(__file__).resolve().parents[1] / "benchmarks" / "run_all.py"
+    if not script.is_file():
+        print(f"error: bench: {script} not found; the benchmarks live in the source "
+              "checkout (install it with pip install -e .)", file=sys.stderr)
+        return 2
+    spec = importlib.util.spec_from_file_location("simsoft_jax_benchmarks", script)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.main(args.bench_args)
+
+
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="simsoft-jax", description=__doc__)
+    parser = argparse.ArgumentParser(prog="simsoft-jax", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
     p_run = sub.add_parser("run", help="solve a scene file and optionally write the result")
     p_run.add_argument("scene", help="scene file (.toml or .json)")
@@ -187,6 +204,10 @@ def main(argv=None) -> int:
     p_cal.add_argument("--max-steps", type=int, default=100)
     p_cal.add_argument("-o", "--output", help="fitted parameters (.json)")
     p_cal.set_defaults(func=_calibrate)
+    p_bench = sub.add_parser("bench", add_help=False,
+                             help="run the benchmarks (benchmarks/run_all.py; --help for options)")
+    p_bench.add_argument("bench_args", nargs=argparse.REMAINDER)
+    p_bench.set_defaults(func=_bench)
     args = parser.parse_args(argv)
     return args.func(args)
 

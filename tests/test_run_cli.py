@@ -294,3 +294,13 @@ def test_example_static_scenes_run_and_converge(path):
         # the example is this file's cantilever: the same tip (beam theory checked above)
         expected = euler_bernoulli_tip(F)
         assert abs(-r.positions("beam")[-1, 2] - expected) / expected < 1.5e-3
+
+
+def test_cli_help_lists_every_command(capsys):
+    from simsoft_jax.cli import main
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--help"])
+    assert exit_info.value.code == 0
+    printed = capsys.readouterr().out
+    for command in ("run", "validate", "princeton", "calibrate", "bench"):
+        assert f"    {command}" in printed
