@@ -329,14 +329,11 @@ def _newton_step(model, dyn, settings, state, h, damped, matrix: IterationMatrix
     w0 = h * (state.v + (0.5 - beta) * h * state.a + beta * h * a1)
     w0 = jnp.where(mask > 0, w0, held_increments(model, dyn, state, t1))
 
-    def rebuild(w, _):
-        r, blocks = residual_and_matrix(w)
-        return r, factorize(blocks)
-
     def body(c):
         w, it, _, _, factors, fresh, previous, rejected = c
-        r, factors = jax.lax.cond(fresh, rebuild, lambda w, f: (newton_residual(w), f),
-                                  w, factors)
+        r = newton_residual(w)  # once in the program; the branch builds only the matrix
+        factors = jax.lax.cond(fresh, lambda w, _: factorize(residual_and_matrix(w)[1]),
+                               lambda _, f: f, w, factors)
         dw = -solve_factored(factors, r)
         if dyn.slide_drives:  # back from slide unknowns to increments (spec: slides_along)
             dw = jnp.einsum("nij,nj->ni", slide_maps(model, dyn, state.R, w)[1], dw)
