@@ -71,6 +71,8 @@ def advise(results: dict) -> list[str]:
 
 
 def main(argv=None) -> int:
+    """Run the selected benchmarks (``argv`` as for the command line, default sys.argv);
+    returns 0. An unknown ``--only`` name exits through argparse (status 2)."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--only", default="",
                         help=f"comma-separated subset of {','.join(BENCHMARKS)}")

@@ -38,8 +38,9 @@ def test_implicit_solve_forward_and_transpose(n):
     b = jnp.asarray(np.random.default_rng(3).normal(size=(n, 6)))
     c = jnp.asarray(np.random.default_rng(4).normal(size=(n, 6)))
     x = assembly.implicit_solve(blocks, b)
-    np.testing.assert_allclose(np.asarray(x).reshape(-1), np.linalg.solve(K, np.asarray(b).reshape(-1)),
-                               rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(np.asarray(x).reshape(-1),
+                               np.linalg.solve(K, np.asarray(b).reshape(-1)), rtol=1e-10,
+                               atol=1e-12)
     # reverse mode uses the transposed solve: d(c . K^-1 b)/db = K^-T c
     g = jax.grad(lambda bb: jnp.sum(c * assembly.implicit_solve(blocks, bb)))(b)
     np.testing.assert_allclose(np.asarray(g).reshape(-1),
