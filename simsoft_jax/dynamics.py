@@ -304,7 +304,7 @@ def empty_iteration_matrix(model: Model) -> IterationMatrix:
 
 # A reused iteration matrix is kept while each correction is at most this fraction of the
 # previous one (linear contraction of modified Newton); otherwise it is rebuilt at once.
-_CONTRACTION_LIMIT = 0.2
+_CONTRACTION_LIMIT = 0.1
 
 
 def _newton_step(model, dyn, settings, state, h, damped, matrix: IterationMatrix):
