@@ -1,60 +1,119 @@
 """The seed's helical-motion scenes (synthetic rod, spring-steel rod, silicone body):
-compile time, Newton iterations per step and wall time per simulated second after
-compilation, at 10 and 40 elements, dt = 0.01 s, t_end = 3 s.
+real-time factor at dt = 0.01 s with 10/20/40 elements, and work-precision when refining
+elements (dt = 0.01 s) and when refining dt (10 elements).
 
-    python benchmarks/dynamics_helical.py
+    PYTHONPATH=. python benchmarks/dynamics_helical.py [--quick] [--out DIR]
 
-Prints a table; wall times are medians of 3 runs after warm-up. Not a test.
+Error: largest tip-position distance to a reference run over the common save times
+(every 0.04 s), divided by the rod length; references: 80 elements (40 with --quick) at
+the same dt, and dt = 0.00125 s (0.0025 s with --quick) at the same elements. Wall:
+median of repeated 3 s rollouts after compilation. Not a test.
 """
-import platform
+from __future__ import annotations
+
+import sys
 import time
 from pathlib import Path
 
-import jax
 import numpy as np
 
-import simsoft_jax as sj
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import common  # noqa: E402
 
-SCENES = Path(__file__).resolve().parents[1] / "examples" / "scenes"
-NAMES = ("helical_synthetic.json", "helical_spring_steel.json", "helical_silicone.json")
+import simsoft_jax as sj  # noqa: E402
+
+SAVE_DT = 0.04  # s, spacing of the times at which runs are compared
 
 
-def measure(path, elements, repeats=3):
-    d = sj.load_scene(path).to_dict()
-    d["rods"][0]["elements"] = elements
-    scene = sj.Scene.from_dict(d)
-    model = sj.build_model(scene)
-    dyn = sj.build_dynamics(model, scene)
-    solver = scene.solver
-    steps = int(round(solver.t_end / solver.dt))
-    settings = sj.DynamicSettings(dt=solver.dt, steps=steps, rho_inf=solver.rho_inf,
-                                  save_every=1, max_iterations=solver.max_iterations)
-    damped = bool(np.any(np.asarray(model.viscosity) != 0))
+def measure(scene: sj.Scene, repeats=3):
+    """Rollout of a dynamic scene: (Trajectory, compile s, median wall s), saving every
+    0.04 s (the common comparison times)."""
+    model, dyn, settings, damped = common.dynamic_setup(scene)
+    save_every = max(1, int(round(SAVE_DT / settings.dt)))
+    settings = settings._replace(save_every=save_every,
+                                 steps=settings.steps // save_every * save_every)
     state = sj.dynamics.initial_state(model, dyn, damped=damped)
     start = time.perf_counter()
-    compiled = sj.dynamics._simulate.lower(model, dyn, settings, state, damped=damped).compile()
+    compiled = sj.dynamics._simulate.lower(model, dyn, settings, state,
+                                           damped=damped).compile()
     compile_s = time.perf_counter() - start
-    traj = jax.block_until_ready(compiled(model, dyn, state))
-    walls = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        traj = jax.block_until_ready(compiled(model, dyn, state))
-        walls.append(time.perf_counter() - start)
-    return traj, compile_s, float(np.median(walls)) / solver.t_end
+    wall, traj = common.median_time(compiled, model, dyn, state, repeats=repeats)
+    return traj, compile_s, wall
 
 
-def main():
-    print(f"machine: {platform.machine()}, jax {jax.__version__}")
-    print(f"{'scene':>28} {'elem':>5} {'conv':>5} {'its/step':>9} {'max its':>8} "
-          f"{'substeps':>9} {'compile s':>10} {'wall s per sim s':>17}")
-    for name in NAMES:
-        for elements in (10, 40):
-            traj, compile_s, wall = measure(SCENES / name, elements)
-            its = np.asarray(traj.iterations)
-            print(f"{name:>28} {elements:>5} {str(bool(traj.converged)):>5} {its.mean():>9.2f} "
-                  f"{its.max():>8d} {int(np.asarray(traj.substeps).max()):>9d} "
-                  f"{compile_s:>10.2f} {wall:>17.4f}")
+def tip_error(traj, ref, length):
+    return float(np.max(np.linalg.norm(np.asarray(traj.p[:, -1]) - np.asarray(ref.p[:, -1]),
+                                       axis=1)) / length)
 
+
+def _row(name, traj, compile_s, wall, t_end, **extra):
+    its = np.asarray(traj.iterations)
+    return dict(scene=name.split(".")[0], converged=bool(traj.converged),
+                its_per_step=float(its.mean()), compile_s=compile_s, wall_ms=wall * 1e3,
+                rtf=t_end / wall, **extra)
+
+
+def real_time_factor(quick: bool):
+    rows = []
+    for name in common.HELICAL:
+        for n in (10, 20) if quick else (10, 20, 40):
+            scene = common.scene_with(name, n, dt=0.01)
+            traj, compile_s, wall = measure(scene, repeats=3 if quick else 5)
+            rows.append(_row(name, traj, compile_s, wall, scene.solver.t_end, elements=n))
+    common.table(rows, [("scene", "scene", "s"), ("elements", "elements", "d"),
+                        ("converged", "conv", ""), ("its_per_step", "its/step", ".2f"),
+                        ("compile_s", "compile s", ".2f"), ("wall_ms", "wall ms (3 s)", ".1f"),
+                        ("rtf", "x real time", ".1f")],
+                 title="real-time factor, dt = 0.01 s, t_end = 3 s")
+    return rows
+
+
+def work_precision(quick: bool):
+    rows, series = [], []
+    for name in common.HELICAL:
+        length = float(np.sum(sj.build_model(common.scene_with(name)).length))
+        ref_n = 40 if quick else 80
+        ref, _, _ = measure(common.scene_with(name, ref_n, dt=0.01), repeats=1)
+        by_elements = []
+        for n in (5, 10, 20) if quick else (5, 10, 20, 40):
+            scene = common.scene_with(name, n, dt=0.01)
+            traj, compile_s, wall = measure(scene, repeats=1 if quick else 3)
+            by_elements.append(_row(name, traj, compile_s, wall, scene.solver.t_end,
+                                    refine="elements", elements=n, dt=0.01,
+                                    error=tip_error(traj, ref, length)))
+        ref_dt = 0.0025 if quick else 0.00125
+        ref, _, _ = measure(common.scene_with(name, 10, dt=ref_dt), repeats=1)
+        by_dt = []
+        for dt in (0.04, 0.02, 0.01) if quick else (0.04, 0.02, 0.01, 0.005):
+            scene = common.scene_with(name, 10, dt=dt)
+            traj, compile_s, wall = measure(scene, repeats=1 if quick else 3)
+            by_dt.append(_row(name, traj, compile_s, wall, scene.solver.t_end, refine="dt",
+                              elements=10, dt=dt, error=tip_error(traj, ref, length)))
+        rows += by_elements + by_dt
+        label = name.split(".")[0].replace("helical_", "")
+        series.append((f"{label}: elements", [r["wall_ms"] for r in by_elements],
+                       [r["error"] for r in by_elements]))
+        series.append((f"{label}: dt", [r["wall_ms"] for r in by_dt],
+                       [r["error"] for r in by_dt]))
+    common.table(rows, [("scene", "scene", "s"), ("refine", "refine", "s"),
+                        ("elements", "elements", "d"), ("dt", "dt s", ".4f"),
+                        ("its_per_step", "its/step", ".2f"), ("wall_ms", "wall ms", ".1f"),
+                        ("error", "tip err / L", ".3e")],
+                 title="dynamics work-precision (error vs reference over 0-3 s)")
+    return rows, series
+
+
+def run(quick=False, out=Path("out/bench")):
+    """Helical scenes: real-time factor and work-precision (elements, dt)."""
+    rtf = real_time_factor(quick)
+    wp, series = work_precision(quick)
+    common.save_json(out, "dynamics_helical", {"real_time_factor": rtf, "work_precision": wp})
+    common.plot_lines(out, "dynamics_work_precision", series, "wall time per 3 s run (ms)",
+                      "max tip error / rod length", "dynamics: work-precision (elements, dt)")
+    return {"real_time_factor": rtf, "work_precision": wp}
+
+
+main = common.standalone(run)
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

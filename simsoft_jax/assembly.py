@@ -2,10 +2,13 @@
 
 Residual convention (spec S47, S70): ``r = f_int - lam * f_ext`` per node (N,6), in the
 nodal frames. Tangent (left-invariant, S70): ``K_t = d r(q o exp(xi)) / d xi`` at xi = 0,
-built from per-element ``jax.jacfwd`` 12x12 blocks (never the global residual) into a
+built from per-element 12x12 blocks (never the global residual): the elastic part in
+closed form (:func:`element.stress_force_and_tangent`), distributed loads and gravity by
+``jax.jacfwd`` in 9 directions, nodal loads in closed form. They are assembled into a
 block-tridiagonal matrix of 6x6 blocks ``(diag (N,6,6), upper (N-1,6,6), lower (N-1,6,6))``,
 ``upper[i] = K[i, i+1]``, ``lower[i] = K[i+1, i]``. Held dofs get an identity row/column and
-a zero residual, so the structure never changes.
+a zero residual, so the structure never changes. Linear solves: :func:`factorize` (dense
+LU for short chains, block Thomas otherwise) and :func:`solve_factored`.
 """
 from __future__ import annotations
 
@@ -18,19 +21,47 @@ from .model import Model
 _ZERO12 = jnp.zeros(12)
 
 
-def _element_residual(model: Model, lam):
-    """Residual (12,) of one element as a function of ``R_A``, ``d`` and element data."""
+def element_load(model: Model, lam):
+    """``-lam f_q`` (12,) of one element's distributed loads and gravity (spec S44) as a
+    function of ``(R_A, d, P, length, rho_a, q_world, q_local)``, or None when the scene has
+    none (then nothing of it is traced)."""
     s = model.structure
     use_world = s.has_gravity or s.has_distributed_world
     use_local = s.has_distributed_local
+    if not (use_world or use_local):
+        return None
+
+    def load(RA, d, P, length, rho_a, q_world, q_local):
+        world = (q_world + rho_a * model.gravity) if use_world else jnp.zeros(3)
+        local = q_local if use_local else jnp.zeros(3)
+        return -lam * element.distributed_force(RA, d, P, length, world, local)
+
+    return load
+
+
+def element_load_and_tangent(load, RA, d, *data):
+    """Value (12,) and left-invariant tangent (12,12) of an :func:`element_load`.
+
+    The load depends on the frames through ``R_A`` and ``d`` only, so ``jax.jacfwd`` over
+    the 3 rotations of ``R_A exp(theta)`` and the 6 components of d is chained with the
+    chart ``d + P(d) x`` of spec S37 (9 directions instead of 12)."""
+    def f(y):
+        dd = d + y[3:]
+        return load(RA @ lie.exp_so3(y[:3]), dd, element.strain_map(dd), *data)
+
+    jac, val = jax.jacfwd(lambda y: (f(y),) * 2, has_aux=True)(jnp.zeros(9, d.dtype))
+    return val, (jac[:, 3:] @ element.strain_map(d)).at[:, 3:6].add(jac[:, :3])
+
+
+def _element_residual(model: Model, lam):
+    """Residual (12,) of one element as a function of ``R_A``, ``d`` and element data."""
+    load = element_load(model, lam)
 
     def residual(RA, d, d0, length, stiffness, rho_a, q_world, q_local):
         P = element.strain_map(d)
         r = element.internal_force(P, d, d0, length, stiffness)
-        if use_world or use_local:
-            world = (q_world + rho_a * model.gravity) if use_world else jnp.zeros(3)
-            local = q_local if use_local else jnp.zeros(3)
-            r = r - lam * element.distributed_force(RA, d, P, length, world, local)
+        if load is not None:
+            r = r + load(RA, d, P, length, rho_a, q_world, q_local)
         return r
 
     return residual
@@ -74,15 +105,18 @@ def assemble_blocks(n_nodes, element_nodes, k_el):
 
 
 def nodal_load_and_tangent(model: Model, lam, R):
-    """``-lam f_ext`` per node (N,6) and its left-invariant derivative (N,6,6) (spec S43)."""
-    load = _nodal_load(model, lam)
-
-    def value_and_jac(R_i, dead, follower):
-        f = lambda x: load(R_i @ lie.exp_so3(x[3:]), dead, follower)  # noqa: E731
-        jac, val = jax.jacfwd(lambda x: (f(x),) * 2, has_aux=True)(jnp.zeros(6))
-        return val, jac
-
-    return jax.vmap(value_and_jac)(R, model.nodal_dead, model.nodal_follower)
+    """``-lam f_ext`` per node (N,6) and its left-invariant derivative (N,6,6) (spec S43):
+    with ``a = R^T F`` (dead force or moment), ``(R exp(theta))^T F = a + skew(a) theta``,
+    so the rotation columns hold ``-lam skew(R^T F)``, ``-lam skew(R^T M)``; follower loads
+    do not depend on the frame."""
+    s = model.structure
+    r = jax.vmap(_nodal_load(model, lam))(R, model.nodal_dead, model.nodal_follower)
+    k = jnp.zeros(R.shape[:1] + (6, 6), R.dtype)
+    if s.has_nodal_dead:
+        local = jnp.einsum("nji,nkj->nki", R, model.nodal_dead.reshape(-1, 2, 3))
+        skews = jax.vmap(jax.vmap(lie.skew))(local)                     # (N, 2, 3, 3)
+        k = k.at[:, :3, 3:].set(-lam * skews[:, 0]).at[:, 3:, 3:].set(-lam * skews[:, 1])
+    return r, k
 
 
 def residual(model: Model, R, p, lam=1.0):
@@ -98,16 +132,17 @@ def residual(model: Model, R, p, lam=1.0):
 def residual_and_tangent(model: Model, R, p, lam=1.0):
     """Residual (N,6) and block-tridiagonal tangent ``(diag, upper, lower)`` (spec S70)."""
     s = model.structure
-    elem = _element_residual(model, lam)
+    load = element_load(model, lam)
 
-    def value_and_jac(RA, d, *data):
-        # r(q o exp(xi)) depends on xi through R_A exp(xi_A) and d + P(d) xi + O(xi^2)
-        # (spec S37), so this first-order chart gives the exact left-invariant tangent
-        # without differentiating the logarithm.
+    def value_and_jac(RA, d, d0, length, stiffness, *data):
+        # elastic part in closed form (spec S42); loads by element_load_and_tangent
         P = element.strain_map(d)
-        f = lambda x: elem(RA @ lie.exp_so3(x[3:6]), d + P @ x, *data)  # noqa: E731
-        jac, val = jax.jacfwd(lambda x: (f(x),) * 2, has_aux=True)(_ZERO12)
-        return val, jac
+        f, k = element.stress_force_and_tangent(P, d, stiffness * (d - d0) / length,
+                                                jnp.diag(stiffness / length))
+        if load is not None:
+            f_q, k_q = element_load_and_tangent(load, RA, d, length, *data)
+            f, k = f + f_q, k + k_q
+        return f, k
 
     f_el, k_el = jax.vmap(value_and_jac)(*_element_args(model, R, p))
     r = assemble_vector(s.n_nodes, s.element_nodes, f_el)
@@ -147,30 +182,53 @@ def block_transpose(blocks):
     return t(diag), t(lower), t(upper)
 
 
-def block_solve(blocks, b):
-    """Solve ``K x = b`` by block LU (block Thomas), ``lax.scan`` over nodes; b, x (N,6).
+# Chains of at most this many nodes are solved by a dense LU of the assembled matrix: on
+# CPU one LAPACK factorization of a (6N, 6N) matrix beats the N sequential 6x6 steps of the
+# block-Thomas scan up to about 12 nodes (benchmarks/README.md), and a factorized dense
+# matrix is re-solved in a few microseconds (modified Newton, IFT).
+DENSE_LIMIT_NODES = 12
 
-    Each 6x6 pivot block is solved with partial pivoting (``jnp.linalg.solve``). Work is
-    O(N) 6x6 operations; a singular pivot gives non-finite output, which the Newton
-    solvers detect and report.
+
+def factorize(blocks):
+    """Factors of a block-tridiagonal ``K`` for :func:`solve_factored` (spec 3.6).
+
+    Chosen at trace time by size: ``(lu, pivots)``, the partial-pivoting LU of the
+    (6N, 6N) matrix, for N <= ``DENSE_LIMIT_NODES``; otherwise the block LU of block Thomas
+    ``(lu (N,6,6), pivots (N,6), C (N,6,6), lower (N-1,6,6))`` with pivot blocks
+    ``S_i = D_i - L_i C_{i-1}`` (each LU-factorized with partial pivoting) and
+    ``C_i = S_i^-1 U_i``. O(N) 6x6 operations (``lax.scan``); a singular pivot gives
+    non-finite solutions, which the Newton solvers detect and report.
     """
     diag, upper, lower = blocks
-    if diag.shape[0] == 1:
-        return jnp.linalg.solve(diag[0], b[0])[None]
+    n = diag.shape[0]
+    if n <= DENSE_LIMIT_NODES:
+        return tuple(jax.scipy.linalg.lu_factor(dense(blocks)))
     pad_u = jnp.concatenate([upper, jnp.zeros((1, 6, 6))])
     pad_l = jnp.concatenate([jnp.zeros((1, 6, 6)), lower])
 
-    def forward(carry, inputs):
-        c_prev, y_prev = carry
-        D, U, L, bi = inputs
-        S = D - L @ c_prev
-        rhs = jnp.concatenate([U, (bi - L @ y_prev)[:, None]], axis=1)
-        sol = jnp.linalg.solve(S, rhs)
-        c, y = sol[:, :6], sol[:, 6]
-        return (c, y), (c, y)
+    def forward(c_prev, inputs):
+        D, U, L = inputs
+        lu, piv = jax.scipy.linalg.lu_factor(D - L @ c_prev)
+        c = jax.scipy.linalg.lu_solve((lu, piv), U)
+        return c, (lu, piv, c)
 
-    init = (jnp.zeros((6, 6)), jnp.zeros(6))
-    _, (C, Y) = jax.lax.scan(forward, init, (diag, pad_u, pad_l, b))
+    _, (lu, piv, C) = jax.lax.scan(forward, jnp.zeros((6, 6)), (diag, pad_u, pad_l))
+    return lu, piv, C, lower
+
+
+def solve_factored(factors, b):
+    """Solve ``K x = b`` with the factors of :func:`factorize`; b, x (N,6)."""
+    if len(factors) == 2:
+        return jax.scipy.linalg.lu_solve(factors, b.reshape(-1)).reshape(b.shape)
+    lu, piv, C, lower = factors
+    pad_l = jnp.concatenate([jnp.zeros((1, 6, 6)), lower])
+
+    def forward(y_prev, inputs):
+        lu_i, piv_i, L, bi = inputs
+        y = jax.scipy.linalg.lu_solve((lu_i, piv_i), bi - L @ y_prev)
+        return y, y
+
+    _, Y = jax.lax.scan(forward, jnp.zeros(6), (lu, piv, pad_l, b))
 
     def backward(x_next, inputs):
         c, y = inputs
@@ -179,6 +237,27 @@ def block_solve(blocks, b):
 
     _, X = jax.lax.scan(backward, jnp.zeros(6), (C, Y), reverse=True)
     return X
+
+
+def block_solve(blocks, b):
+    """Solve ``K x = b`` for a block-tridiagonal ``K``; b, x (N,6) (see :func:`factorize`)."""
+    return solve_factored(factorize(blocks), b)
+
+
+def implicit_solve(blocks, b):
+    """``K^-1 b`` (N,6) inside ``lax.custom_linear_solve`` (the implicit-function-theorem
+    solve of statics and dynamics): one factorization of ``K`` serves the solve, and for
+    dense factors the transposed solve of reverse mode too."""
+    factors = factorize(blocks)
+
+    def transpose_solve(_, y):
+        if len(factors) == 2:
+            return jax.scipy.linalg.lu_solve(factors, y.reshape(-1), trans=1).reshape(y.shape)
+        return block_solve(block_transpose(blocks), y)
+
+    return jax.lax.custom_linear_solve(
+        lambda x: block_matvec(blocks, x), b,
+        solve=lambda _, y: solve_factored(factors, y), transpose_solve=transpose_solve)
 
 
 def dense(blocks):

@@ -6,7 +6,10 @@ eliminated (spec S66): ``a(w) = (w/h - v_n - (1/2 - beta) h a_n)/(beta h)``,
 ``vdot(w) = ((1 - alpha_m) a(w) + alpha_m a_n - alpha_f vdot_n)/(1 - alpha_f)``,
 ``q_{n+1} = q_n o exp(w)`` (S54). Newton on ``F(w) = r(q(w), v(w), vdot(w), t_{n+1})``
 with the exact iteration matrix ``M beta' + C_t gamma' + K_t T_SE3(w)`` (S61, S66) built
-from per-element ``jacfwd`` blocks (block-tridiagonal). Parameters from rho_inf (S53).
+from element blocks (closed-form stress tangent, ``jacfwd`` of the gyroscopic and load
+terms; block-tridiagonal), factorized once and reused over iterations and steps while
+the iteration contracts (modified Newton, see :func:`_newton_step`). Parameters from
+rho_inf (S53).
 Held dofs (clamps, pins, drives) are eliminated: their ``w`` is prescribed (spec 4.5).
 A step whose Newton solve fails is retried with halved sub-steps before the run stops
 and reports where. Rollouts are ``lax.scan``; gradients go through each step's Newton
@@ -25,7 +28,9 @@ import numpy as np
 
 from . import element, inertia, lie
 from .assembly import (_nodal_load, apply_constraints, assemble_blocks, assemble_vector,
-                       block_matvec, block_solve, block_transpose, nodal_load_and_tangent)
+                       block_solve, element_load, element_load_and_tangent, factorize,
+                       implicit_solve, nodal_load_and_tangent, solve_factored)
+from .drives import held_increments, reduce, slide_maps
 from .loads import LoadChannels, build_channels, loaded_model
 from .model import Model
 from .statics import step_norm
@@ -148,17 +153,6 @@ def build_dynamics(model: Model, scene, inertia_kind: str | None = None) -> Dyna
                     f64(rot), f64(slide), kind, nodes, sliding)
 
 
-def drive_poses(model: Model, dyn: Dynamics, t):
-    """Prescribed frames (D,3,3), (D,3) of the driven nodes at time ``t``."""
-    interp = jax.vmap(lambda tt, vals: jax.vmap(lambda col: jnp.interp(t, tt, col),
-                                                in_axes=1)(vals))
-    disp = interp(dyn.drive_times, dyn.drive_displacement)
-    rot = interp(dyn.drive_times, dyn.drive_rotation)
-    idx = jnp.asarray(dyn.drive_nodes, int)
-    R = jnp.einsum("dij,djk->dik", jax.vmap(lie.exp_so3)(rot), model.R0[idx])
-    return R, model.p0[idx] + disp
-
-
 # ------------------------------------------------------------------------------ residual
 
 def _element_args(model: Model, dyn: Dynamics, R, p, v, vd):
@@ -172,9 +166,7 @@ def _element_args(model: Model, dyn: Dynamics, R, p, v, vd):
 
 def _element_residual(model: Model, dyn: Dynamics, damped: bool):
     """Dynamic element residual (12,): inertia + gyroscopic + elastic + viscous - loads."""
-    s = model.structure
-    use_world = s.has_gravity or s.has_distributed_world
-    use_local = s.has_distributed_local
+    load = element_load(model, 1.0)
 
     def residual(RA, d, ve, vde, maps, mass, d0, length, stiffness, inert, visc, qw, ql):
         P = element.strain_map(d)
@@ -182,10 +174,8 @@ def _element_residual(model: Model, dyn: Dynamics, damped: bool):
         r = r + element.internal_force(P, d, d0, length, stiffness)
         if damped:
             r = r + element.viscous_force(P, ve, length, visc)
-        if use_world or use_local:
-            world = (qw + inert[0] * model.gravity) if use_world else jnp.zeros(3)
-            local = ql if use_local else jnp.zeros(3)
-            r = r - element.distributed_force(RA, d, P, length, world, local)
+        if load is not None:
+            r = r + load(RA, d, P, length, inert[0], qw, ql)
         return r
 
     return residual
@@ -204,23 +194,33 @@ def dynamic_residual(model: Model, dyn: Dynamics, R, p, v, vd, damped: bool, mas
 def residual_and_iteration_matrix(model, dyn, R, p, v, vd, w, beta_p, gamma_p, damped,
                                   slide=None):
     """Residual (N,6) and block-tridiagonal ``M beta' + C_t gamma' + K_t T(w)`` (S61, S66).
-    ``slide = (C, B, mask)`` (see :func:`_slide_maps`) reduces sliding drive nodes to their
+    ``slide = (C, B, mask)`` (see :func:`drives.slide_maps`) reduces sliding drive nodes to their
     slide unknown before the held dofs are eliminated."""
     s = model.structure
     n = s.n_nodes
     a = jnp.asarray(s.element_nodes)
-    elem = _element_residual(model, dyn, damped)
+    load = element_load(model, 1.0)
     T = jax.vmap(lie.tangent_se3)(w)
 
-    def value_and_blocks(RA, d, ve, vde, maps, mass, *data):
+    def value_and_blocks(RA, d, ve, vde, maps, mass, d0, length, stiffness, inert, visc, qw, ql):
+        # K_t: closed-form stress tangent (spec S42) and load tangent, in the chart of S37;
+        # C_t: gyroscopic (jacfwd in the 12 velocities) and viscous P^T Ups P / L (S42)
         P = element.strain_map(d)
-
-        def f(x):  # chart of spec S37 for the frames, plus velocity perturbations
-            return elem(RA @ lie.exp_so3(x[3:6]), d + P @ x[:12], ve + x[12:], vde, maps,
-                        mass, *data)
-
-        jac, val = jax.jacfwd(lambda x: (f(x),) * 2, has_aux=True)(jnp.zeros(24))
-        return val, jac[:, :12], jac[:, 12:], mass
+        stress, stress_jac = stiffness * (d - d0) / length, jnp.diag(stiffness / length)
+        gyro = lambda u: inertia.gyroscopic_force(  # noqa: E731
+            maps, length, inert, u, dyn.inertia_kind, mass)
+        C, g = jax.jacfwd(lambda u: (gyro(u),) * 2, has_aux=True)(ve)
+        if damped:
+            rate = lambda dd: element.strain_map(dd) @ ve / length  # noqa: E731
+            stress = stress + visc * rate(d)
+            stress_jac = stress_jac + visc[:, None] * jax.jacfwd(rate)(d)
+            C = C + P.T @ (visc[:, None] * P) / length
+        f, K = element.stress_force_and_tangent(P, d, stress, stress_jac)
+        f = f + mass @ vde + g
+        if load is not None:
+            f_q, K_q = element_load_and_tangent(load, RA, d, length, inert[0], qw, ql)
+            f, K = f + f_q, K + K_q
+        return f, K, C, mass
 
     f_el, K_el, C_el, M_el = jax.vmap(value_and_blocks)(*_element_args(model, dyn, R, p, v, vd))
     TA, TB = T[a], T[a + 1]
@@ -234,44 +234,9 @@ def residual_and_iteration_matrix(model, dyn, R, p, v, vd, w, beta_p, gamma_p, d
         diag = diag + k_n @ T
     if slide is not None:
         C, B, mask = slide
-        r, blocks = _reduce(C, B, r, (diag, upper, lower))
+        r, blocks = reduce(C, B, r, (diag, upper, lower))
         return apply_constraints(mask, r, blocks)
     return apply_constraints(s.free_mask(), r, (diag, upper, lower))
-
-
-# ------------------------------------------------------------------------------ sliding drives
-
-def _slide_maps(model: Model, dyn: Dynamics, R_n, w):
-    """Reduction of the sliding drive nodes to one unknown each, the slide ``ds`` along the
-    world direction e. With the rotation increment fixed, ``p_{n+1} = p_n + R_n T_SO3^T w_U``
-    is linear in ``w_U``, so ``w += B ds`` with ``B[:, 0] = [T_SO3^-T R_n^T e; 0]`` moves the
-    node by ``ds e``. Its equation is the force along e at the new state: ``C r`` with
-    ``C[0] = [R_{n+1}^T e; 0]`` (both exact and constant during a step's Newton iterations).
-    Returns ``(C, B, mask)``: (N,6,6) row and column maps (identity elsewhere) and the free
-    mask with the slide dof (row/column 0) of those nodes free."""
-    n = model.structure.n_nodes
-    sl = jnp.asarray(dyn.slide_drives, int)
-    idx = jnp.asarray(dyn.drive_nodes, int)[sl]
-    e = dyn.drive_slide[sl]
-    Rn, wr = R_n[idx], w[idx, 3:]
-    body = jnp.einsum("kji,kj->ki", Rn, e)                              # R_n^T e
-    b = jnp.einsum("kji,kj->ki", jax.vmap(lie.tangent_so3_inv)(wr), body)  # T^-T R_n^T e
-    c = jnp.einsum("kji,kj->ki", jax.vmap(lie.exp_so3)(wr), body)       # R_{n+1}^T e
-    zeros = jnp.zeros((len(dyn.slide_drives), 6, 6))
-    Cn = zeros.at[:, 0, :3].set(c)
-    Bn = zeros.at[:, :3, 0].set(b)
-    eye = jnp.broadcast_to(jnp.eye(6), (n, 6, 6))
-    mask = model.structure.free_mask().at[idx].set(jnp.eye(6)[0])
-    return eye.at[idx].set(Cn), eye.at[idx].set(Bn), mask
-
-
-def _reduce(C, B, r, blocks):
-    """``r_i -> C_i r_i``, ``K_ij -> C_i K_ij B_j`` on the block-tridiagonal matrix."""
-    diag, upper, lower = blocks
-    diag = C @ diag @ B
-    upper = C[:-1] @ upper @ B[1:]
-    lower = C[1:] @ lower @ B[:-1]
-    return jnp.einsum("nij,nj->ni", C, r), (diag, upper, lower)
 
 
 # ------------------------------------------------------------------------------ one step
@@ -283,24 +248,6 @@ def _fields(settings: DynamicSettings, state: State, w, h):
     v1 = state.v + (1.0 - gamma) * h * state.a + gamma * h * a1
     vd1 = ((1.0 - alpha_m) * a1 + alpha_m * state.a - alpha_f * state.vd) / (1.0 - alpha_f)
     return a1, v1, vd1
-
-
-def _held_increments(model: Model, dyn: Dynamics, state: State, t1):
-    """Prescribed ``w`` of held dofs: 0 for clamps and pins, ``log(H_n^-1 H_c(t))`` for drives.
-    A sliding drive keeps its current slide ``s_n = (p_n - p_c(t_n)) . e``: its target
-    position is ``p_c(t1) + s_n e`` (Newton then solves for the change of slide)."""
-    w = jnp.zeros_like(state.v)
-    if dyn.drive_nodes:
-        idx = jnp.asarray(dyn.drive_nodes, int)
-        Rc, pc = drive_poses(model, dyn, t1)
-        if dyn.slide_drives:
-            e = dyn.drive_slide  # zero rows for drives that do not slide
-            s_n = jnp.sum((state.p[idx] - drive_poses(model, dyn, state.t)[1]) * e, axis=1)
-            pc = pc + s_n[:, None] * e
-        wd = jax.vmap(lambda Ra, pa, Rb, pb: lie.log_se3(lie.relative_pose(Ra, pa, Rb, pb)))(
-            state.R[idx], state.p[idx], Rc, pc)
-        w = w.at[idx].set(wd)
-    return w
 
 
 def _step_functions(model, dyn, settings, state, h, damped):
@@ -320,45 +267,98 @@ def _step_functions(model, dyn, settings, state, h, damped):
         s1 = new_state(w)
         return dynamic_residual(loaded, dyn, s1.R, s1.p, s1.v, s1.vd, damped)
 
+    def newton_residual(w):  # the residual of residual_and_matrix, without the matrix
+        if not dyn.slide_drives:
+            return residual(w)
+        s1 = new_state(w)
+        C, _, mask = slide_maps(model, dyn, state.R, w)
+        r = dynamic_residual(loaded, dyn, s1.R, s1.p, s1.v, s1.vd, damped, masked=False)
+        return jnp.einsum("nij,nj->ni", C, r) * mask
+
     def residual_and_matrix(w):
         s1 = new_state(w)
-        slide = _slide_maps(model, dyn, state.R, w) if dyn.slide_drives else None
+        slide = slide_maps(model, dyn, state.R, w) if dyn.slide_drives else None
         return residual_and_iteration_matrix(loaded, dyn, s1.R, s1.p, s1.v, s1.vd, w,
                                              beta_p, gamma_p, damped, slide)
 
-    return new_state, residual, residual_and_matrix, t1
+    return new_state, residual, newton_residual, residual_and_matrix, t1
 
 
-def _newton_step(model, dyn, settings, state, h, damped):
-    """Newton on F(w) = 0 (spec S66). Returns (w, iterations, converged)."""
+class IterationMatrix(NamedTuple):
+    """Factorized iteration matrix (see :func:`assembly.factorize`) carried from step to
+    step; h: the step size (s) it was built for; renew: rebuild it at the start of the
+    next step (the last step had to rebuild it mid-way)."""
+    factors: tuple
+    h: jax.Array
+    renew: jax.Array
+
+
+def empty_iteration_matrix(model: Model) -> IterationMatrix:
+    """A placeholder :class:`IterationMatrix` of the right shapes (rebuilt at first use)."""
+    n = model.structure.n_nodes
+    blocks = (jnp.zeros((n, 6, 6)), jnp.zeros((n - 1, 6, 6)), jnp.zeros((n - 1, 6, 6)))
+    shapes = jax.eval_shape(factorize, blocks)
+    zeros = jax.tree_util.tree_map(lambda x: jnp.zeros(x.shape, x.dtype), shapes)
+    return IterationMatrix(zeros, jnp.asarray(-1.0), jnp.asarray(True))
+
+
+# A reused iteration matrix is kept while each correction is at most this fraction of the
+# previous one (linear contraction of modified Newton); otherwise it is rebuilt at once.
+_CONTRACTION_LIMIT = 0.1
+
+
+def _newton_step(model, dyn, settings, state, h, damped, matrix: IterationMatrix):
+    """Modified Newton on F(w) = 0 (spec S66). Returns (w, iterations, converged, matrix).
+
+    The factorized iteration matrix ``S_t`` (S61) is reused from earlier iterations and
+    earlier steps of the same size h; only the residual is evaluated at each iterate. It
+    is rebuilt at the current iterate (and the correction from the old one discarded)
+    when a correction does not contract by ``_CONTRACTION_LIMIT``, is not finite or leaves
+    the rotation branch, and at the start of a step when the previous step rebuilt it;
+    with a fresh matrix the iteration is exact Newton. Approximating ``S_t`` changes only
+    the convergence rate, not the solution (spec 4.4). Converged when the estimated
+    distance to the solution, ``|dw| theta / (1 - theta)`` with the observed contraction
+    ``theta`` (``|dw|`` itself at the first iteration), is below the tolerance.
+    """
     alpha_m, alpha_f, _, beta = alpha_parameters(settings.rho_inf)
-    _, _, residual_and_matrix, t1 = _step_functions(model, dyn, settings, state, h, damped)
+    _, _, newton_residual, residual_and_matrix, t1 = _step_functions(
+        model, dyn, settings, state, h, damped)
     mask = model.structure.free_mask()
     # predictor (S60)
     a1 = (alpha_f * state.vd - alpha_m * state.a) / (1.0 - alpha_m)
     w0 = h * (state.v + (0.5 - beta) * h * state.a + beta * h * a1)
-    w0 = jnp.where(mask > 0, w0, _held_increments(model, dyn, state, t1))
+    w0 = jnp.where(mask > 0, w0, held_increments(model, dyn, state, t1))
 
     def body(c):
-        w, it, _, _ = c
-        r, blocks = residual_and_matrix(w)
-        dw = -block_solve(blocks, r)
+        w, it, _, _, factors, fresh, previous, rejected = c
+        r = newton_residual(w)  # once in the program; the branch builds only the matrix
+        factors = jax.lax.cond(fresh, lambda w, _: factorize(residual_and_matrix(w)[1]),
+                               lambda _, f: f, w, factors)
+        dw = -solve_factored(factors, r)
         if dyn.slide_drives:  # back from slide unknowns to increments (spec: slides_along)
-            dw = jnp.einsum("nij,nj->ni", _slide_maps(model, dyn, state.R, w)[1], dw)
+            dw = jnp.einsum("nij,nj->ni", slide_maps(model, dyn, state.R, w)[1], dw)
         # cap nodal rotation corrections at pi/4 (spec 4.7.6): keeps Newton on the branch
         rot = jnp.max(jnp.linalg.norm(dw[:, 3:], axis=1))
         dw = dw * jnp.minimum(1.0, 0.25 * jnp.pi / jnp.maximum(rot, 1e-300))
         size = step_norm(model, dw)
         finite = jnp.all(jnp.isfinite(dw))
-        w_new = w + jnp.where(finite, dw, 0.0)
-        converged = finite & (size <= settings.tolerance)
-        failed = ~finite | (it + 1 >= settings.max_iterations) | (
-            jnp.max(jnp.linalg.norm(w_new[:, 3:], axis=1)) > 0.5 * jnp.pi)
-        return w_new, it + 1, converged, failed & ~converged
+        bad = ~finite | (jnp.max(jnp.linalg.norm((w + dw)[:, 3:], axis=1)) > 0.5 * jnp.pi)
+        theta = size / previous
+        reject = ~fresh & (bad | (theta > _CONTRACTION_LIMIT))
+        w_new = jnp.where(reject | ~finite, w, w + jnp.where(finite, dw, 0.0))
+        estimate = jnp.where(jnp.isfinite(previous) & (theta < _CONTRACTION_LIMIT),
+                             size * theta / (1.0 - theta), size)
+        converged = ~reject & finite & (estimate <= settings.tolerance)
+        failed = (fresh & bad) | (it + 1 >= settings.max_iterations)
+        return (w_new, it + 1, converged, failed & ~converged, factors, reject,
+                jnp.where(reject, previous, size), rejected | reject)
 
-    w, it, ok, _ = jax.lax.while_loop(lambda c: ~(c[2] | c[3]), body,
-                                      (w0, jnp.array(0), jnp.array(False), jnp.array(False)))
-    return w, it, ok
+    stale = matrix.renew | (jnp.abs(matrix.h - h) > 1e-9 * h)
+    init = (w0, jnp.array(0), jnp.array(False), jnp.array(False), matrix.factors, stale,
+            jnp.array(jnp.inf), jnp.array(False))
+    w, it, ok, _, factors, _, _, rejected = jax.lax.while_loop(lambda c: ~(c[2] | c[3]),
+                                                               body, init)
+    return w, it, ok, IterationMatrix(factors, jnp.asarray(h, jnp.float64), rejected)
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0, 1))
@@ -375,60 +375,57 @@ def _implicit_increment_jvp(settings, damped, primals, tangents):
     mask = model.structure.free_mask()
 
     def held(m, dy, st, hh):
-        return _held_increments(m, dy, st, st.t + hh)
+        return held_increments(m, dy, st, st.t + hh)
 
     def F(m, dy, st, hh):  # residual with the free w frozen and the held w prescribed
-        _, residual, _, _ = _step_functions(m, dy, settings, st, hh, damped)
+        residual = _step_functions(m, dy, settings, st, hh, damped)[1]
         return residual(jnp.where(mask > 0, w, held(m, dy, st, hh)))
 
     primal_args, tangent_args = (model, dyn, state, h), (dmodel, ddyn, dstate, dh)
     _, dF = jax.jvp(F, primal_args, tangent_args)
     _, dheld = jax.jvp(held, primal_args, tangent_args)
-    _, _, residual_and_matrix, _ = _step_functions(model, dyn, settings, state, h, damped)
-    _, blocks = residual_and_matrix(w)
-    dw = jax.lax.custom_linear_solve(
-        lambda x: block_matvec(blocks, x), -dF,
-        solve=lambda _, b: block_solve(blocks, b),
-        transpose_solve=lambda _, b: block_solve(block_transpose(blocks), b))
+    residual_and_matrix = _step_functions(model, dyn, settings, state, h, damped)[3]
+    dw = implicit_solve(residual_and_matrix(w)[1], -dF)
     return w, jnp.where(mask > 0, dw, dheld)
 
 
-def _attempt(model, dyn, settings, state, h, damped, differentiable):
-    """One generalized-alpha step of size h: (new state, iterations, converged)."""
+def _attempt(model, dyn, settings, state, h, damped, differentiable, matrix):
+    """One generalized-alpha step of size h: (new state, iterations, converged, matrix)."""
     new_state = _step_functions(model, dyn, settings, state, h, damped)[0]
     if differentiable:
-        stopped = jax.lax.stop_gradient((model, dyn, state, h))
-        w, it, ok = _newton_step(stopped[0], stopped[1], settings, stopped[2], stopped[3],
-                                 damped)
+        m, dy, st, hh, matrix = jax.lax.stop_gradient((model, dyn, state, h, matrix))
+        w, it, ok, matrix = _newton_step(m, dy, settings, st, hh, damped, matrix)
         w = _implicit_increment(settings, damped, model, dyn, state, h, w)
     else:
-        w, it, ok = _newton_step(model, dyn, settings, state, h, damped)
-    return new_state(w), it, ok
+        w, it, ok, matrix = _newton_step(model, dyn, settings, state, h, damped, matrix)
+    return new_state(w), it, ok, matrix
 
 
-def _advance(model, dyn, settings, state, damped):
-    """One macro step of size dt, with sub-stepping on failure (halve, up to max_halvings)."""
+def _advance(model, dyn, settings, state, damped, matrix):
+    """One macro step of size dt, with sub-stepping on failure (halve, up to max_halvings).
+    Returns (state, iterations, sub-steps, converged, iteration matrix)."""
     dt = settings.dt
     t_target = state.t + dt
     h_min = dt / 2.0**settings.max_halvings
 
     def body(c):
-        st, h, its, subs, failed = c
+        st, h, its, subs, failed, matrix = c
         h_try = jnp.minimum(h, t_target - st.t)
-        new, it, ok = _attempt(model, dyn, settings, st, h_try, damped, False)
+        new, it, ok, matrix = _attempt(model, dyn, settings, st, h_try, damped, False, matrix)
         keep = lambda a, b: jax.tree_util.tree_map(  # noqa: E731
             lambda x, y: jnp.where(ok, x, y), a, b)
         st = keep(new, st)
         h = jnp.where(ok, jnp.minimum(2.0 * h, dt), 0.5 * h)
-        return st, h, its + it, subs + ok, failed | (h < h_min * (1 - 1e-12))
+        return st, h, its + it, subs + ok, failed | (h < h_min * (1 - 1e-12)), matrix
 
     def running(c):
-        st, _, _, _, failed = c
+        st, _, _, _, failed, _ = c
         return (st.t < t_target - 1e-12 * dt) & ~failed
 
-    st, _, its, subs, failed = jax.lax.while_loop(
-        running, body, (state, jnp.asarray(dt), jnp.array(0), jnp.array(0), jnp.array(False)))
-    return st, its, subs, ~failed
+    st, _, its, subs, failed, matrix = jax.lax.while_loop(
+        running, body, (state, jnp.asarray(dt), jnp.array(0), jnp.array(0), jnp.array(False),
+                        matrix))
+    return st, its, subs, ~failed, matrix
 
 
 def initial_state(model: Model, dyn: Dynamics, t0=0.0, damped=None) -> State:
@@ -443,8 +440,8 @@ def initial_state(model: Model, dyn: Dynamics, t0=0.0, damped=None) -> State:
     s = model.structure
     blocks = assemble_blocks(s.n_nodes, s.element_nodes, dyn.masses)
     if dyn.slide_drives:  # a sliding node accelerates along its direction (w = 0: B = C^T)
-        C, B, mask = _slide_maps(model, dyn, model.R0, zeros)
-        g, blocks = apply_constraints(mask, *_reduce(C, B, g, blocks))
+        C, B, mask = slide_maps(model, dyn, model.R0, zeros)
+        g, blocks = apply_constraints(mask, *reduce(C, B, g, blocks))
         vd0 = jnp.einsum("nij,nj->ni", B, -block_solve(blocks, g))
     else:
         g, blocks = apply_constraints(s.free_mask(), g, blocks)
@@ -485,16 +482,17 @@ def _simulate(model: Model, dyn: Dynamics, settings: DynamicSettings, state: Sta
     state = initial_state(model, dyn, damped=damped) if state is None else state
 
     def step(carry, _):
-        st, failed, failed_at = carry
+        st, failed, failed_at, matrix = carry
         if differentiable:
-            new, its, ok = _attempt(model, dyn, settings, st, settings.dt, damped, True)
+            new, its, ok, matrix = _attempt(model, dyn, settings, st, settings.dt, damped, True,
+                                            matrix)
             subs = jnp.array(1)
         else:
-            new, its, subs, ok = _advance(model, dyn, settings, st, damped)
+            new, its, subs, ok, matrix = _advance(model, dyn, settings, st, damped, matrix)
         ok = ok & ~failed
         new = jax.tree_util.tree_map(lambda x, y: jnp.where(ok, x, y), new, st)
         failed_at = jnp.where(failed | ok, failed_at, st.t)
-        return (new, failed | ~ok, failed_at), (its, subs)
+        return (new, failed | ~ok, failed_at, matrix), (its, subs)
 
     def save_block(carry, _):
         carry, (its, subs) = jax.lax.scan(
@@ -504,8 +502,8 @@ def _simulate(model: Model, dyn: Dynamics, settings: DynamicSettings, state: Sta
         return carry, (st.t, st.R, st.p, st.v, its, subs)
 
     n_saves = settings.steps // settings.save_every
-    carry0 = (state, jnp.array(False), jnp.array(jnp.nan))
-    (final, failed, failed_at), (t, R, p, v, its, subs) = jax.lax.scan(
+    carry0 = (state, jnp.array(False), jnp.array(jnp.nan), empty_iteration_matrix(model))
+    (final, failed, failed_at, _), (t, R, p, v, its, subs) = jax.lax.scan(
         save_block, carry0, None, length=n_saves)
     cat = lambda first, rest: jnp.concatenate([first[None], rest])  # noqa: E731
     return Trajectory(cat(state.t, t), cat(state.R, R), cat(state.p, p), cat(state.v, v),

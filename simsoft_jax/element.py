@@ -57,6 +57,58 @@ def internal_force(P, d, d0, length, stiffness):
     return P.T @ (stiffness * strain)
 
 
+def _w2(w, a):
+    """``W^2 a = w (w . a) - |w|^2 a`` with ``W = skew(w)``."""
+    return w * jnp.dot(w, a) - jnp.dot(w, w) * a
+
+
+def _w2_jacobian(w, a):
+    """Derivative of ``W^2 a`` with respect to ``w``: ``(w . a) I + w a^T - 2 a w^T``."""
+    return jnp.dot(w, a) * jnp.eye(3, dtype=w.dtype) + jnp.outer(w, a) - 2.0 * jnp.outer(a, w)
+
+
+def _inverse_tangent_transpose_jacobian(d, stress):
+    """Derivative (6,6) of ``T_SE3^-T(d) stress`` with respect to ``d`` at fixed stress.
+
+    With ``T^-T(d) s = [A^T s_u; B^T s_u + A^T s_w]``, ``A^T = I - W/2 + g2 W^2`` and
+    ``B^T = -V/2 + g2 (V W + W V) + (w . u) g4 W^2`` (spec S18-S19; ``u, w`` the linear and
+    angular parts of d, ``V, W`` their skew matrices), differentiated term by term; the
+    coefficients ``g2, g4`` of ``x = |w|^2`` and their x-derivatives come from
+    :func:`lie.inverse_coefficients_and_derivatives`. Checked against ``jax.jacfwd``.
+    """
+    u, w, su, sw = d[:3], d[3:], stress[:3], stress[3:]
+    (g2, g4), (g2x, g4x) = lie.inverse_coefficients_and_derivatives(w)
+    wu = jnp.dot(w, u)
+    w2su, w2sw = _w2(w, su), _w2(w, sw)
+    cross_su = jnp.cross(u, jnp.cross(w, su)) + jnp.cross(w, jnp.cross(u, su))
+    Su = lie.skew(su)
+    du_u = jnp.zeros((3, 3), d.dtype)
+    du_w = 0.5 * Su + g2 * _w2_jacobian(w, su) + 2.0 * g2x * jnp.outer(w2su, w)
+    dw_u = (0.5 * Su - g2 * (lie.skew(jnp.cross(w, su)) + lie.skew(w) @ Su)
+            + g4 * jnp.outer(w2su, w))
+    dw_w = (0.5 * lie.skew(sw) + g2 * _w2_jacobian(w, sw) + 2.0 * g2x * jnp.outer(w2sw, w)
+            - g2 * (lie.skew(u) @ Su + lie.skew(jnp.cross(u, su)))
+            + 2.0 * g2x * jnp.outer(cross_su, w)
+            + g4 * jnp.outer(w2su, u) + wu * g4 * _w2_jacobian(w, su)
+            + 2.0 * wu * g4x * jnp.outer(w2su, w))
+    return jnp.block([[du_u, du_w], [dw_u, dw_w]])
+
+
+def stress_force_and_tangent(P, d, stress, stress_jacobian):
+    """Nodal forces ``P(d)^T stress`` (12,) of a section stress resultant (6,) (spec S39,
+    S41) and their left-invariant tangent (12,12) (spec S42).
+
+    ``stress_jacobian`` (6,6) is ``d stress / d d`` (``K/L`` for elastic stress). With
+    ``P^T s = [-T^-T(-d) s; T^-T(d) s]`` the derivative in d is the geometric stiffness
+    ``[G(-d, s); G(d, s)]`` (G from :func:`_inverse_tangent_transpose_jacobian`) plus
+    ``P^T d stress/d d``; the chart ``d + P x`` of the nodal perturbations x (spec S37)
+    then multiplies it by ``P`` on the right. ``P = strain_map(d)`` (6,12).
+    """
+    geometric = jnp.concatenate([_inverse_tangent_transpose_jacobian(-d, stress),
+                                 _inverse_tangent_transpose_jacobian(d, stress)])
+    return P.T @ stress, (geometric + P.T @ stress_jacobian) @ P
+
+
 def distributed_force(RA, d, P, length, world_force, local_force):
     """Consistent nodal forces of a distributed force per unit length (N/m) (spec S44).
 

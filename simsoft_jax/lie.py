@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from fractions import Fraction
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -90,6 +91,14 @@ def inverse_coefficients(w):
     """Coefficients ``(g2, g4)`` of the inverse tangents at rotation vector ``w`` (spec S6)."""
     g2, g4 = _coefficients_of(_INVERSE, jnp.dot(w, w))
     return g2, g4
+
+
+def inverse_coefficients_and_derivatives(w):
+    """``(g2, g4)`` at rotation vector ``w`` and their derivatives with respect to
+    ``x = |w|^2``, ``((g2, g4), (dg2/dx, dg4/dx))`` (forward mode, safe at 0; spec S24)."""
+    values, slopes = jax.jvp(lambda x: _coefficients_of(_INVERSE, x), (jnp.dot(w, w),),
+                             (jnp.ones((), w.dtype),))
+    return (values[0], values[1]), (slopes[0], slopes[1])
 
 
 # --------------------------------------------------------------------------------------

@@ -18,8 +18,7 @@ import jax
 import jax.numpy as jnp
 
 from . import lie
-from .assembly import (block_matvec, block_solve, block_transpose, residual,
-                       residual_and_tangent)
+from .assembly import block_solve, implicit_solve, residual, residual_and_tangent
 from .model import Model
 
 
@@ -229,10 +228,7 @@ def _implicit_jvp(primals, tangents):
     dmodel = tangents[0]
     _, dr = jax.jvp(lambda m: residual(m, R, p, 1.0), (model,), (dmodel,))
     _, blocks = residual_and_tangent(model, R, p, 1.0)
-    dxi = jax.lax.custom_linear_solve(
-        lambda x: block_matvec(blocks, x), -dr,
-        solve=lambda _, b: block_solve(blocks, b),
-        transpose_solve=lambda _, b: block_solve(block_transpose(blocks), b))
+    dxi = implicit_solve(blocks, -dr)
     # d/dt [R exp(t dxi)] at t = 0: (R skew(dxi_w), R dxi_u)
     dR = jnp.einsum("nij,njk->nik", R, jax.vmap(lie.skew)(dxi[:, 3:]))
     dp = jnp.einsum("nij,nj->ni", R, dxi[:, :3])

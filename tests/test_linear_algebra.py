@@ -1,0 +1,86 @@
+"""Block-tridiagonal factorization (dense LU for short chains, block Thomas for long ones),
+the implicit-function solve, and the closed-form element tangent, against NumPy and
+forward-mode autodiff references (the assembled tangent against finite differences is in
+test_model_kinematics.py)."""
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from simsoft_jax import assembly, element, lie
+
+
+def random_blocks(n, seed=0):
+    rng = np.random.default_rng(seed)
+    diag = rng.normal(size=(n, 6, 6)) + 8.0 * np.eye(6)
+    return tuple(jnp.asarray(b) for b in (diag, rng.normal(size=(n - 1, 6, 6)),
+                                          rng.normal(size=(n - 1, 6, 6))))
+
+
+@pytest.mark.parametrize("n", [3, assembly.DENSE_LIMIT_NODES, assembly.DENSE_LIMIT_NODES + 1, 40])
+def test_factorized_solve_matches_numpy_on_both_paths(n):
+    blocks = random_blocks(n)
+    factors = jax.jit(assembly.factorize)(blocks)
+    assert len(factors) == (2 if n <= assembly.DENSE_LIMIT_NODES else 4)
+    K = np.asarray(assembly.dense(blocks))
+    rng = np.random.default_rng(1)
+    for _ in range(2):  # the same factors serve several right-hand sides
+        b = rng.normal(size=(n, 6))
+        x = np.asarray(jax.jit(assembly.solve_factored)(factors, jnp.asarray(b)))
+        np.testing.assert_allclose(x.reshape(-1), np.linalg.solve(K, b.reshape(-1)),
+                                   rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("n", [5, 20])
+def test_implicit_solve_forward_and_transpose(n):
+    blocks = random_blocks(n, seed=2)
+    K = np.asarray(assembly.dense(blocks))
+    b = jnp.asarray(np.random.default_rng(3).normal(size=(n, 6)))
+    c = jnp.asarray(np.random.default_rng(4).normal(size=(n, 6)))
+    x = assembly.implicit_solve(blocks, b)
+    np.testing.assert_allclose(np.asarray(x).reshape(-1),
+                               np.linalg.solve(K, np.asarray(b).reshape(-1)), rtol=1e-10,
+                               atol=1e-12)
+    # reverse mode uses the transposed solve: d(c . K^-1 b)/db = K^-T c
+    g = jax.grad(lambda bb: jnp.sum(c * assembly.implicit_solve(blocks, bb)))(b)
+    np.testing.assert_allclose(np.asarray(g).reshape(-1),
+                               np.linalg.solve(K.T, np.asarray(c).reshape(-1)), rtol=1e-10,
+                               atol=1e-12)
+
+
+@pytest.mark.parametrize("angle", [0.0, 1e-7, 0.4, 1.7, 3.0])
+def test_stress_tangent_matches_autodiff_of_the_chart(angle):
+    """K = d/dx [P(d(x))^T stress(d(x))] with d(x) = d + P(d) x (spec S37, S42) by jacfwd."""
+    rng = np.random.default_rng(5)
+    w = rng.normal(size=3)
+    d = jnp.asarray(np.concatenate([rng.normal(size=3), angle * w / np.linalg.norm(w)]))
+    d0 = jnp.asarray([0.1, 0.0, 0.0, 0.0, 0.0, 0.0])
+    stiffness = jnp.asarray([10.0, 4.0, 5.0, 0.3, 0.7, 0.9])
+    length = 0.1
+
+    @jax.jit
+    def both(d):
+        P = element.strain_map(d)
+        closed = element.stress_force_and_tangent(P, d, stiffness * (d - d0) / length,
+                                                  jnp.diag(stiffness / length))
+        chart = lambda x: element.internal_force(  # noqa: E731
+            element.strain_map(d + P @ x), d + P @ x, d0, length, stiffness)
+        return closed, (chart(jnp.zeros(12)), jax.jacfwd(chart)(jnp.zeros(12)))
+
+    (f, K), (f_ref, K_ref) = both(d)
+    np.testing.assert_allclose(f, f_ref, rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(K, K_ref, rtol=1e-11, atol=1e-11)
+
+
+def test_inverse_coefficient_derivatives_match_autodiff():
+    for w in (jnp.zeros(3), jnp.asarray([0.3, -0.2, 0.5]), jnp.asarray([1.5, 0.9, -1.2])):
+        (g2, g4), (g2x, g4x) = lie.inverse_coefficients_and_derivatives(w)
+        x = jnp.dot(w, w)
+        coef = lambda xx: jnp.stack(lie.inverse_coefficients(  # noqa: E731
+            jnp.asarray([jnp.sqrt(xx), 0.0, 0.0])))
+        if float(x) > 0:
+            np.testing.assert_allclose([g2x, g4x], jax.jacfwd(coef)(x), rtol=1e-10)
+        np.testing.assert_allclose([g2, g4], lie.inverse_coefficients(w), rtol=1e-14)
+    # at 0 the series slopes are the x-coefficients: g2 = 1/12 + x/720, g4 = 1/360 + x/7560
+    (_, _), (g2x, g4x) = lie.inverse_coefficients_and_derivatives(jnp.zeros(3))
+    np.testing.assert_allclose([g2x, g4x], [1 / 720, 1 / 7560], rtol=1e-14)
