@@ -304,3 +304,13 @@ def test_cli_help_lists_every_command(capsys):
     printed = capsys.readouterr().out
     for command in ("run", "validate", "princeton", "calibrate", "bench"):
         assert f"    {command}" in printed
+
+
+def test_cli_bench_passes_its_options_to_the_benchmark_suite(capsys):
+    """``simsoft-jax bench --help`` is the help of benchmarks/run_all.py (nothing runs)."""
+    from simsoft_jax.cli import main
+    with pytest.raises(SystemExit) as exit_info:
+        main(["bench", "--help"])
+    assert exit_info.value.code == 0
+    printed = capsys.readouterr().out
+    assert "--only" in printed and "--quick" in printed and "throughput" in printed
