@@ -339,16 +339,30 @@ def errors(measured: Measurements, elements: int = 16, gravity: bool = True,
 
 def load_angle_sweep(theta_deg: Sequence[float], load_N: Sequence[float], elements: int = 16,
                      gravity: bool = True, settings: StaticSettings = StaticSettings(),
-                     chunk: int | None = None):
-    """Tip deflection over a load-angle x load-magnitude grid, one vmapped call.
+                     warm_start: bool = True):
+    """Tip deflection over a load-angle x load-magnitude grid in one compiled call.
 
-    Returns ``(tip (A, F, 2) (y, z) in m, converged (A, F))`` for ``A`` angles and ``F`` loads.
+    ``warm_start`` (default): the points are solved in grid order, each from its
+    neighbour's equilibrium (:func:`simsoft_jax.sweeps.static_sweep`); otherwise all at
+    once with ``jax.vmap``. Returns ``(tip (A, F, 2) (y, z) in m, converged (A, F))`` for
+    ``A`` angles and ``F`` loads.
     """
-    points = grid(theta=theta_deg, load=load_N)
-    sim = replay(points["theta"], points["load"], elements, gravity, False, (1.0,), None,
-                 settings, chunk)
     shape = (len(theta_deg), len(load_N))
-    return sim.deflection[:, 0].reshape(shape + (2,)), sim.converged.reshape(shape)
+    points = grid(theta=theta_deg, load=load_N)
+    # boustrophedon order (loads up, then down at the next angle): neighbours stay close
+    order = np.arange(points["theta"].size).reshape(shape)
+    order[1::2] = order[1::2, ::-1]
+    order = order.ravel()
+    model = build_model(scene(elements, gravity))
+    index, fraction = station_locations(model, [LENGTH])
+    eq = static_sweep(model, _vary_case, {k: v[order] for k, v in points.items()}, settings,
+                      warm_start=warm_start)
+    tip = np.empty((order.size, 2))
+    tip[order] = np.asarray(jax.vmap(station_deflections, in_axes=(0, 0, None, None))(
+        eq.R, eq.p, index, fraction))[:, 0]
+    converged = np.empty(order.size, bool)
+    converged[order] = np.asarray(eq.converged)
+    return tip.reshape(shape + (2,)), converged.reshape(shape)
 
 
 def write_table(path, replay: Replay, errors: Errors | None = None) -> Path:

@@ -74,17 +74,47 @@ def _static(model, points, vary, settings, chunk):
     return _map(lambda q: solve_static(vary(model, q), settings), points, chunk)
 
 
+@partial(jax.jit, static_argnames=("vary", "settings"))
+def _static_warm(model, points, vary, settings):
+    def step(start, q):
+        m = vary(model, q)
+        eq = solve_static(m.replace(R0=start[0], p0=start[1]), settings)
+        start = (jnp.where(eq.converged, eq.R, start[0]), jnp.where(eq.converged, eq.p, start[1]))
+        return start, eq
+    points = {name: jnp.asarray(value, jnp.float64) for name, value in points.items()}
+    return jax.lax.scan(step, (model.R0, model.p0), points)[1]
+
+
 def static_sweep(model: Model, vary: Callable, points: dict,
-                 settings: StaticSettings = StaticSettings(), chunk: int | None = None
-                 ) -> Equilibrium:
+                 settings: StaticSettings = StaticSettings(), chunk: int | None = None,
+                 warm_start: bool = False) -> Equilibrium:
     """Static equilibria of ``vary(model, point)`` for every point (one compile).
 
     points: ``{name: (B, ...) array}``; returns an :class:`Equilibrium` whose arrays have
     a leading batch axis ``B`` (``p`` (B, N, 3), ``converged`` (B,), ...). Differentiable
     like :func:`solve_static`.
+
+    ``warm_start=True`` solves the points one after the other (``lax.scan``), each from
+    the equilibrium of the previous converged point with its full load at once
+    (``load_steps=1``; a failing step is still halved by the continuation): a natural
+    continuation along the sweep, a few Newton iterations per point when neighbouring
+    points are close (order them so: :func:`grid` varies its last axis fastest). On a
+    multistable problem it may follow a different branch than a solve from the
+    reference shape. Points whose warm start fails are solved again from the reference
+    shape (vmapped, ``settings`` as given; ``chunk`` applies to them). The warm path
+    inspects ``converged`` on the host: call it outside ``jax.jit``/``jax.grad`` (the
+    vmapped default is the differentiable one).
     """
     _batch_size(points)
-    return _static(model, points, vary, settings, chunk)
+    if not warm_start:
+        return _static(model, points, vary, settings, chunk)
+    eq = _static_warm(model, points, vary, settings._replace(load_steps=1))
+    failed = np.flatnonzero(~np.asarray(eq.converged))
+    if failed.size:       # too far from the previous point: solve those from the reference
+        cold = _static(model, {name: np.asarray(value)[failed] for name, value in points.items()},
+                       vary, settings, chunk)
+        eq = jax.tree.map(lambda warm, again: warm.at[failed].set(again), eq, cold)
+    return eq
 
 
 @partial(jax.jit, static_argnames=("vary", "settings", "damped", "chunk"))

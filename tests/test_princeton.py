@@ -168,9 +168,15 @@ def test_princeton_command_writes_table_and_figures(tmp_path, capsys, seed_repla
 
 
 def test_load_angle_sweep_matches_replay(seed_replay):
-    """A 4 x 8 grid (32 points, one vmapped call) contains the 30 deg, 2 f0 seed case."""
+    """A 4 x 8 grid solved by warm-started continuation along the grid, and all at once
+    (vmapped), both contain the 30 deg and 60 deg seed cases of the unbatched replay."""
     loads = pr.F0 * np.arange(1, 9) / 2
-    tip, ok = pr.load_angle_sweep([0.0, 30.0, 60.0, 90.0], loads, elements=ELEMENTS)
-    assert tip.shape == (4, 8, 2) and ok.all()
-    case = np.flatnonzero((seed_replay.theta_deg == 30.0) & np.isclose(seed_replay.load_N, 2 * pr.F0))
-    np.testing.assert_allclose(tip[1, 3], seed_replay.deflection[case[0], -1], atol=1e-12)
+    angles = [0.0, 30.0, 60.0, 90.0]
+    for warm in (True, False):
+        tip, ok = pr.load_angle_sweep(angles, loads, elements=ELEMENTS, warm_start=warm)
+        assert tip.shape == (4, 8, 2) and ok.all()
+        for i, th, k in ((1, 30.0, 3), (2, 60.0, 1)):
+            case = np.flatnonzero((seed_replay.theta_deg == th)
+                                  & np.isclose(seed_replay.load_N, loads[k]))
+            np.testing.assert_allclose(tip[i, k], seed_replay.deflection[case[0], -1],
+                                       rtol=1e-9, atol=1e-12)
