@@ -1,6 +1,7 @@
 """Batched throughput: scenes per second of ``jax.vmap``-ped sweeps, static (the Princeton
 beam under 1000 tip-load scales, 100 with --quick) and dynamic (the synthetic helical
-scene under 32 load scales, 8 with --quick; 10 elements, dt = 0.01 s, 3 s).
+scene under 32 load scales, 8 with --quick; 10 elements, dt = 0.01 s, 3 s), and of the
+warm-started Princeton load-angle map (40 x 25 points, 10 x 10 with --quick).
 
     PYTHONPATH=. python benchmarks/throughput.py [--quick] [--out DIR]
 
@@ -40,6 +41,22 @@ def static_sweep(cases: int):
                 single_scene_s=single)
 
 
+def warm_map(angles: int, loads: int):
+    """The Princeton load-angle x load map (16 elements, gravity) walked as a continuation
+    (``sweeps.static_sweep(warm_start=True)`` via ``princeton.load_angle_sweep``)."""
+    from simsoft_jax import princeton
+
+    theta = np.linspace(0.0, 90.0, angles)
+    load = np.linspace(0.5, 4.0, loads) * princeton.F0
+    sweep = lambda: princeton.load_angle_sweep(theta, load)  # noqa: E731
+    compile_s, (_, ok) = common.timed(sweep)
+    wall, _ = common.median_time(sweep, repeats=3, warmup=0)
+    cases = angles * loads
+    return dict(sweep="princeton map, warm start", cases=cases, converged=int(np.sum(ok)),
+                first_call_s=compile_s, wall_s=wall, scenes_per_s=cases / wall,
+                single_scene_s=float("nan"))
+
+
 def dynamic_sweep(cases: int):
     model, dyn, settings, damped = common.dynamic_setup(
         common.scene_with("helical_synthetic.json"))
@@ -61,7 +78,9 @@ def dynamic_sweep(cases: int):
 
 def run(quick=False, out=Path("out/bench")):
     """Scenes per second of vmapped static and dynamic sweeps."""
-    rows = [static_sweep(100 if quick else 1000), dynamic_sweep(8 if quick else 32)]
+    rows = [static_sweep(100 if quick else 1000),
+            warm_map(*((10, 10) if quick else (40, 25))),
+            dynamic_sweep(8 if quick else 32)]
     common.table(rows, [("sweep", "sweep", "s"), ("cases", "cases", "d"),
                         ("converged", "converged", "d"), ("first_call_s", "1st call s", ".2f"),
                         ("wall_s", "wall s", ".3f"), ("scenes_per_s", "scenes/s", ".1f"),
