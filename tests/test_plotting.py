@@ -17,16 +17,7 @@ from matplotlib import animation  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
 from simsoft_jax import plotting  # noqa: E402
-
-
-def rot_x(a):
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def rot_y(a):
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+from reference_rotations import rot_x, rot_y
 
 
 def twisted_rod(n=4, length=1.0, twist=np.pi / 2):

@@ -21,6 +21,7 @@ import pytest
 from scipy import integrate, optimize, special
 
 import simsoft_jax as sj
+from reference_rotations import rot_x, rot_y
 
 L = 1.0
 # distinct bending/torsion stiffnesses so that a mixed-up axis or stiffness index shows
@@ -39,16 +40,6 @@ EXACT = 1e-10      # pure bending / torsion: exact for any mesh, up to round-off
 # ------------------------------------------------------------------------------------------
 # closed forms
 # ------------------------------------------------------------------------------------------
-
-def rot_x(a):
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def rot_y(a):
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
 
 def rot_z(a):
     c, s = np.cos(a), np.sin(a)
