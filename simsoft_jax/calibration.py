@@ -160,8 +160,12 @@ def minimize(residual_fn: Callable, x0, optimizer=None, max_steps: int = 100,
             covariance, J)
 
 
-def _make_fit(names, nominal: np.ndarray, result) -> Fit:
+def _make_fit(names, model: Model, result) -> Fit:
+    """A :class:`Fit` from :func:`minimize`'s result; values relative to ``model``'s first
+    element."""
     x, history, r, converged, steps, gnorm, covariance, J = result
+    nominal = {"stiffness": np.asarray(model.stiffness[0]),
+               "viscosity": np.asarray(model.viscosity[0])}
     scale = np.exp(x)
     std = scale * np.sqrt(np.maximum(np.diag(covariance), 0.0))
     values = {}
@@ -256,9 +260,7 @@ def fit_static(targets: Sequence[StaticTarget], params, x0=None, optimizer=None,
     x0 = np.zeros(len(names)) if x0 is None else np.asarray(x0, float)
     result = minimize(static_residual_fn(targets, names, settings), x0, optimizer, max_steps,
                       gradient_tolerance, noise_std)
-    nominal = {"stiffness": np.asarray(targets[0].model.stiffness[0]),
-               "viscosity": np.asarray(targets[0].model.viscosity[0])}
-    return _make_fit(names, nominal, result)
+    return _make_fit(names, targets[0].model, result)
 
 
 def fit_trajectory(model: Model, dyn: Dynamics, settings: DynamicSettings, node: int,
@@ -285,6 +287,4 @@ def fit_trajectory(model: Model, dyn: Dynamics, settings: DynamicSettings, node:
 
     x0 = np.zeros(len(names)) if x0 is None else np.asarray(x0, float)
     result = minimize(residual_fn, x0, optimizer, max_steps, gradient_tolerance, noise_std)
-    nominal = {"stiffness": np.asarray(model.stiffness[0]),
-               "viscosity": np.asarray(model.viscosity[0])}
-    return _make_fit(names, nominal, result)
+    return _make_fit(names, model, result)

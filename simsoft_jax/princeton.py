@@ -150,14 +150,17 @@ def _vary_case(model: Model, point: dict) -> Model:
 
 def replay(theta_deg=None, load_N=None, elements: int = 16, gravity: bool = True,
            relative: bool = False, stations=DEFAULT_STATIONS, stiffness=None,
-           settings: StaticSettings = StaticSettings(), chunk: int | None = None) -> Replay:
-    """Solve the load cases in one vmapped call (one compile per batch size).
+           settings: StaticSettings = StaticSettings(), chunk: int | None = None,
+           warm_start: bool = False) -> Replay:
+    """Solve the load cases in one compiled call (one compile per batch size).
 
     theta_deg, load_N: (C,) arrays (default: the seed's 25 cases, :func:`seed_cases`).
     stations: r_i / L (default 0.25, 0.5, 0.75, 1). relative: subtract the self-weight
     deflection of each angle (needs ``gravity``; the self-weight states are solved in
-    the same call). stiffness: optional section diagonal (see :func:`scene`). chunk:
-    points per vmapped batch (:func:`simsoft_jax.sweeps.static_sweep`).
+    the same call). stiffness: optional section diagonal (see :func:`scene`). chunk,
+    warm_start: as in :func:`simsoft_jax.sweeps.static_sweep` (default: all cases at once
+    with ``jax.vmap``; ``warm_start`` solves them in the given order, each from the
+    previous equilibrium).
     """
     if theta_deg is None and load_N is None:
         theta_deg, load_N = seed_cases()
@@ -175,20 +178,20 @@ def replay(theta_deg=None, load_N=None, elements: int = 16, gravity: bool = True
     angles = np.unique(theta) if relative else np.zeros(0)
     theta_all = np.concatenate([theta, angles])
     load_all = np.concatenate([load, np.zeros_like(angles)])
-    # pad the batch to a power of two (repeating the last case): fewer distinct compiles
-    pad = (1 << (len(theta_all) - 1).bit_length()) - len(theta_all)
+    # vmapped: pad the batch to a power of two (repeating the last case), fewer compiles
+    pad = 0 if warm_start else (1 << (len(theta_all) - 1).bit_length()) - len(theta_all)
     points = {"theta": np.pad(theta_all, (0, pad), mode="edge"),
               "load": np.pad(load_all, (0, pad), mode="edge")}
-    eq = static_sweep(model, _vary_case, points, settings, chunk)
+    eq = static_sweep(model, _vary_case, points, settings, chunk, warm_start)
     defl = np.asarray(jax.vmap(station_deflections, in_axes=(0, 0, None, None))(
         eq.R, eq.p, index, fraction))
     ok, its = np.asarray(eq.converged), np.asarray(eq.iterations)
     C = len(theta)
-    out = defl[:C]
+    out, ok = defl[:C], ok[:C]
     if relative:
-        out = out - defl[C + np.searchsorted(angles, theta)]
-        ok = ok[:C] & ok[C + np.searchsorted(angles, theta)]
-    return Replay(theta, load, stations_m, out, ok[:C], its[:C], relative)
+        weight = C + np.searchsorted(angles, theta)
+        out, ok = out - defl[weight], ok & np.asarray(eq.converged)[weight]
+    return Replay(theta, load, stations_m, out, ok, its[:C], relative)
 
 
 class Measurements(NamedTuple):
@@ -353,15 +356,12 @@ def load_angle_sweep(theta_deg: Sequence[float], load_N: Sequence[float], elemen
     order = np.arange(points["theta"].size).reshape(shape)
     order[1::2] = order[1::2, ::-1]
     order = order.ravel()
-    model = build_model(scene(elements, gravity))
-    index, fraction = station_locations(model, [LENGTH])
-    eq = static_sweep(model, _vary_case, {k: v[order] for k, v in points.items()}, settings,
-                      warm_start=warm_start)
+    sim = replay(points["theta"][order], points["load"][order], elements, gravity,
+                 stations=(1.0,), settings=settings, warm_start=warm_start)
     tip = np.empty((order.size, 2))
-    tip[order] = np.asarray(jax.vmap(station_deflections, in_axes=(0, 0, None, None))(
-        eq.R, eq.p, index, fraction))[:, 0]
+    tip[order] = sim.deflection[:, 0]
     converged = np.empty(order.size, bool)
-    converged[order] = np.asarray(eq.converged)
+    converged[order] = sim.converged
     return tip.reshape(shape + (2,)), converged.reshape(shape)
 
 
