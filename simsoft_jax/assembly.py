@@ -2,9 +2,10 @@
 
 Residual convention (spec S47, S70): ``r = f_int - lam * f_ext`` per node (N,6), in the
 nodal frames. Tangent (left-invariant, S70): ``K_t = d r(q o exp(xi)) / d xi`` at xi = 0,
-built from per-element 12x12 blocks (never the global residual): the elastic part in
-closed form (:func:`element.stress_force_and_tangent`), distributed loads and gravity by
-``jax.jacfwd`` in 9 directions, nodal loads in closed form. They are assembled into a
+built from per-element 12x12 blocks (never the global residual): the elastic part, gravity,
+world-frame distributed loads and nodal loads in closed form
+(:func:`element_force_and_tangent`), follower distributed loads by ``jax.jacfwd`` in 6
+directions. They are assembled into a
 block-tridiagonal matrix of 6x6 blocks ``(diag (N,6,6), upper (N-1,6,6), lower (N-1,6,6))``,
 ``upper[i] = K[i, i+1]``, ``lower[i] = K[i+1, i]``. Held dofs get an identity row/column and
 a zero residual, so the structure never changes. Linear solves: :func:`factorize` (dense
@@ -21,47 +22,85 @@ from .model import Model
 _ZERO12 = jnp.zeros(12)
 
 
-def element_load(model: Model, lam):
-    """``-lam f_q`` (12,) of one element's distributed loads and gravity (spec S44) as a
-    function of ``(R_A, d, P, length, rho_a, q_world, q_local)``, or None when the scene has
-    none (then nothing of it is traced)."""
+def dead_distributed_force(model: Model, lam):
+    """``-lam (q_world + rho_a g)`` (3,) per element as a function of ``(rho_a, q_world)``:
+    the dead force per unit length (N/m) of gravity and world-frame distributed loads on
+    the residual side, or None when the scene has neither (then nothing of it is traced)."""
     s = model.structure
-    use_world = s.has_gravity or s.has_distributed_world
-    use_local = s.has_distributed_local
-    if not (use_world or use_local):
+    if not (s.has_gravity or s.has_distributed_world):
         return None
-
-    def load(RA, d, P, length, rho_a, q_world, q_local):
-        world = (q_world + rho_a * model.gravity) if use_world else jnp.zeros(3)
-        local = q_local if use_local else jnp.zeros(3)
-        return -lam * element.distributed_force(RA, d, P, length, world, local)
-
-    return load
+    return lambda rho_a, q_world: -lam * (q_world + rho_a * model.gravity)
 
 
-def element_load_and_tangent(load, RA, d, *data):
-    """Value (12,) and left-invariant tangent (12,12) of an :func:`element_load`.
+def follower_distributed_load(model: Model, lam):
+    """``-lam f_local`` (12,) of one element's follower distributed load as a function of
+    ``(d, P, length, q_local)`` (:func:`element.follower_distributed_force`), or None when
+    the scene has none."""
+    if not model.structure.has_distributed_local:
+        return None
+    return lambda d, P, length, q_local: -lam * element.follower_distributed_force(
+        d, P, length, q_local)
 
-    The load depends on the frames through ``R_A`` and ``d`` only, so ``jax.jacfwd`` over
-    the 3 rotations of ``R_A exp(theta)`` and the 6 components of d is chained with the
-    chart ``d + P(d) x`` of spec S37 (9 directions instead of 12)."""
+
+def follower_load_and_tangent(load, d, P, length, q_local):
+    """Value (12,) and left-invariant tangent (12,12) of a :func:`follower_distributed_load`:
+    it depends on the frames through d only, so ``jax.jacfwd`` in the 6 components of d is
+    chained with the chart ``d + P(d) x`` of spec S37."""
     def f(y):
-        dd = d + y[3:]
-        return load(RA @ lie.exp_so3(y[:3]), dd, element.strain_map(dd), *data)
+        dd = d + y
+        return load(dd, element.strain_map(dd), length, q_local)
 
-    jac, val = jax.jacfwd(lambda y: (f(y),) * 2, has_aux=True)(jnp.zeros(9, d.dtype))
-    return val, (jac[:, 3:] @ element.strain_map(d)).at[:, 3:6].add(jac[:, :3])
+    jac, val = jax.jacfwd(lambda y: (f(y),) * 2, has_aux=True)(jnp.zeros(6, d.dtype))
+    return val, jac @ P
+
+
+def element_force_and_tangent(P, d, stress, stress_jacobian, RA, length, dead_force=None,
+                              follower=None, q_local=None):
+    """Nodal forces (12,) and left-invariant tangent (12,12) of one element from its section
+    stress (6,) and ``d stress / d d`` (6,6) (elastic, plus viscous in dynamics), a dead
+    distributed force ``dead_force`` (3,) (N/m, world frame, residual sign) and a follower
+    load ``follower`` (:func:`follower_distributed_load`) with its ``q_local`` (3,).
+
+    The dead load enters as an extra stress and stress Jacobian plus rigid-motion terms
+    (:func:`element.dead_load_terms`), so one geometric term serves both (spec S42, S44).
+    """
+    direct = None
+    if dead_force is not None:
+        s_q, S_q, f_direct, K_direct = element.dead_load_terms(RA, d, P, length, dead_force)
+        stress, stress_jacobian = stress + s_q, stress_jacobian + S_q
+        direct = (f_direct, K_direct)
+    f, k = element.stress_force_and_tangent(P, d, stress, stress_jacobian)
+    if direct is not None:
+        f, k = f + direct[0], k + direct[1]
+    if follower is not None:
+        f_q, k_q = follower_load_and_tangent(follower, d, P, length, q_local)
+        f, k = f + f_q, k + k_q
+    return f, k
+
+
+def element_load_force(RA, d, P, length, dead_force=None, follower=None, q_local=None):
+    """Nodal forces (12,) of an element's distributed loads (value only; see
+    :func:`element_force_and_tangent` for the arguments)."""
+    f = jnp.zeros(12, d.dtype)
+    if dead_force is not None:
+        s_q, _, f_direct, _ = element.dead_load_terms(RA, d, P, length, dead_force)
+        f = f + P.T @ s_q + f_direct
+    if follower is not None:
+        f = f + follower(d, P, length, q_local)
+    return f
 
 
 def _element_residual(model: Model, lam):
     """Residual (12,) of one element as a function of ``R_A``, ``d`` and element data."""
-    load = element_load(model, lam)
+    dead, follower = dead_distributed_force(model, lam), follower_distributed_load(model, lam)
 
     def residual(RA, d, d0, length, stiffness, rho_a, q_world, q_local):
         P = element.strain_map(d)
         r = element.internal_force(P, d, d0, length, stiffness)
-        if load is not None:
-            r = r + load(RA, d, P, length, rho_a, q_world, q_local)
+        if dead is not None or follower is not None:
+            r = r + element_load_force(RA, d, P, length,
+                                       None if dead is None else dead(rho_a, q_world),
+                                       follower, q_local)
         return r
 
     return residual
@@ -132,17 +171,14 @@ def residual(model: Model, R, p, lam=1.0):
 def residual_and_tangent(model: Model, R, p, lam=1.0):
     """Residual (N,6) and block-tridiagonal tangent ``(diag, upper, lower)`` (spec S70)."""
     s = model.structure
-    load = element_load(model, lam)
+    dead, follower = dead_distributed_force(model, lam), follower_distributed_load(model, lam)
 
-    def value_and_jac(RA, d, d0, length, stiffness, *data):
-        # elastic part in closed form (spec S42); loads by element_load_and_tangent
+    def value_and_jac(RA, d, d0, length, stiffness, rho_a, q_world, q_local):
+        # elastic stress and loads in closed form (spec S42, S44); follower loads by jacfwd
         P = element.strain_map(d)
-        f, k = element.stress_force_and_tangent(P, d, stiffness * (d - d0) / length,
-                                                jnp.diag(stiffness / length))
-        if load is not None:
-            f_q, k_q = element_load_and_tangent(load, RA, d, length, *data)
-            f, k = f + f_q, k + k_q
-        return f, k
+        return element_force_and_tangent(
+            P, d, stiffness * (d - d0) / length, jnp.diag(stiffness / length), RA, length,
+            None if dead is None else dead(rho_a, q_world), follower, q_local)
 
     f_el, k_el = jax.vmap(value_and_jac)(*_element_args(model, R, p))
     r = assemble_vector(s.n_nodes, s.element_nodes, f_el)
@@ -189,12 +225,38 @@ def block_transpose(blocks):
 DENSE_LIMIT_NODES = 12
 
 
+def lu(A):
+    """Partial-pivoting LU of a square matrix: ``(lu, perm)`` with ``A[perm] = L U``.
+
+    The row permutation is formed once here: ``jax.scipy.linalg.lu_solve`` rebuilds it
+    from LAPACK's pivots at every solve in an n-step loop, which cost more than the two
+    triangular solves themselves (66 loop iterations per solve of an 11-node chain).
+    """
+    factors, _, perm = jax.lax.linalg.lu(A)
+    return factors, perm
+
+
+def lu_solve(factors, b, transpose=False):
+    """Solve ``A x = b`` (or ``A^T x = b``) with ``factors = lu(A)``; b (n,) or (n, k)."""
+    f, perm = factors
+    tri = jax.lax.linalg.triangular_solve
+    x = b if b.ndim == 2 else b[:, None]
+    if transpose:  # A^T = U^T L^T P: solve U^T, then L^T, then undo the permutation
+        x = tri(f, x, left_side=True, lower=False, transpose_a=True)
+        x = tri(f, x, left_side=True, lower=True, unit_diagonal=True, transpose_a=True)
+        x = jnp.zeros_like(x).at[perm].set(x)
+    else:
+        x = tri(f, x[perm], left_side=True, lower=True, unit_diagonal=True)
+        x = tri(f, x, left_side=True, lower=False)
+    return x if b.ndim == 2 else x[:, 0]
+
+
 def factorize(blocks):
     """Factors of a block-tridiagonal ``K`` for :func:`solve_factored` (spec 3.6).
 
-    Chosen at trace time by size: ``(lu, pivots)``, the partial-pivoting LU of the
-    (6N, 6N) matrix, for N <= ``DENSE_LIMIT_NODES``; otherwise the block LU of block Thomas
-    ``(lu (N,6,6), pivots (N,6), C (N,6,6), lower (N-1,6,6))`` with pivot blocks
+    Chosen at trace time by size: ``(lu, perm)`` (:func:`lu`) of the (6N, 6N) matrix for
+    N <= ``DENSE_LIMIT_NODES``; otherwise the block LU of block Thomas
+    ``(lu (N,6,6), perm (N,6), C (N,6,6), lower (N-1,6,6))`` with pivot blocks
     ``S_i = D_i - L_i C_{i-1}`` (each LU-factorized with partial pivoting) and
     ``C_i = S_i^-1 U_i``. O(N) 6x6 operations (``lax.scan``); a singular pivot gives
     non-finite solutions, which the Newton solvers detect and report.
@@ -202,33 +264,33 @@ def factorize(blocks):
     diag, upper, lower = blocks
     n = diag.shape[0]
     if n <= DENSE_LIMIT_NODES:
-        return tuple(jax.scipy.linalg.lu_factor(dense(blocks)))
+        return lu(dense(blocks))
     pad_u = jnp.concatenate([upper, jnp.zeros((1, 6, 6))])
     pad_l = jnp.concatenate([jnp.zeros((1, 6, 6)), lower])
 
     def forward(c_prev, inputs):
         D, U, L = inputs
-        lu, piv = jax.scipy.linalg.lu_factor(D - L @ c_prev)
-        c = jax.scipy.linalg.lu_solve((lu, piv), U)
-        return c, (lu, piv, c)
+        factors = lu(D - L @ c_prev)
+        c = lu_solve(factors, U)
+        return c, (*factors, c)
 
-    _, (lu, piv, C) = jax.lax.scan(forward, jnp.zeros((6, 6)), (diag, pad_u, pad_l))
-    return lu, piv, C, lower
+    _, (f, perm, C) = jax.lax.scan(forward, jnp.zeros((6, 6)), (diag, pad_u, pad_l))
+    return f, perm, C, lower
 
 
 def solve_factored(factors, b):
     """Solve ``K x = b`` with the factors of :func:`factorize`; b, x (N,6)."""
     if len(factors) == 2:
-        return jax.scipy.linalg.lu_solve(factors, b.reshape(-1)).reshape(b.shape)
-    lu, piv, C, lower = factors
+        return lu_solve(factors, b.reshape(-1)).reshape(b.shape)
+    f, perm, C, lower = factors
     pad_l = jnp.concatenate([jnp.zeros((1, 6, 6)), lower])
 
     def forward(y_prev, inputs):
-        lu_i, piv_i, L, bi = inputs
-        y = jax.scipy.linalg.lu_solve((lu_i, piv_i), bi - L @ y_prev)
+        f_i, perm_i, L, bi = inputs
+        y = lu_solve((f_i, perm_i), bi - L @ y_prev)
         return y, y
 
-    _, Y = jax.lax.scan(forward, jnp.zeros(6), (lu, piv, pad_l, b))
+    _, Y = jax.lax.scan(forward, jnp.zeros(6), (f, perm, pad_l, b))
 
     def backward(x_next, inputs):
         c, y = inputs
@@ -252,7 +314,7 @@ def implicit_solve(blocks, b):
 
     def transpose_solve(_, y):
         if len(factors) == 2:
-            return jax.scipy.linalg.lu_solve(factors, y.reshape(-1), trans=1).reshape(y.shape)
+            return lu_solve(factors, y.reshape(-1), transpose=True).reshape(y.shape)
         return block_solve(block_transpose(blocks), y)
 
     return jax.lax.custom_linear_solve(

@@ -101,6 +101,21 @@ def inverse_coefficients_and_derivatives(w):
     return (values[0], values[1]), (slopes[0], slopes[1])
 
 
+def translation_coefficients(w):
+    """Coefficients of ``V(w) = T_SO3(w)^T = I + c1 W + c2 W^2`` (``W = skew(w)``), the map
+    that gives the translation ``V(w) U`` of ``exp_se3([U; w])`` (spec S14), and their first
+    and second derivatives with respect to ``x = |w|^2``:
+    ``((c1, c2), (c1', c2'), (c1'', c2''))``. With the spec's coefficients (S6)
+    ``c1 = beta/2``, ``c2 = a2``, and differentiating their closed forms gives
+    ``c1' = -c3/2``, ``c2' = c4/2``; the second derivatives come from one forward-mode
+    derivative of ``c3, c4`` (safe at 0, spec S24).
+    """
+    values, slopes = jax.jvp(lambda x: _coefficients_of(_FORWARD, x), (jnp.dot(w, w),),
+                             (jnp.ones((), w.dtype),))
+    _, beta, a2, c3, c4 = values
+    return (0.5 * beta, a2), (-0.5 * c3, 0.5 * c4), (-0.5 * slopes[3], 0.5 * slopes[4])
+
+
 # --------------------------------------------------------------------------------------
 # hat / vee / adjoints (spec S1-S4)
 # --------------------------------------------------------------------------------------
