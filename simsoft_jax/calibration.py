@@ -23,6 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from ._xla import jit
 from .dynamics import DynamicSettings, Dynamics, simulate
 from .model import Model
 from .statics import StaticSettings, solve_static
@@ -120,7 +121,7 @@ def minimize(residual_fn: Callable, x0, optimizer=None, max_steps: int = 100,
     """
     search = optimizer is None
     optimizer = _lbfgs_descent() if search else optimizer
-    evaluate = jax.jit(lambda x: (*residual_fn(x), jax.jacfwd(lambda y: residual_fn(y)[0])(x)))
+    evaluate = jit(lambda x: (*residual_fn(x), jax.jacfwd(lambda y: residual_fn(y)[0])(x)))
 
     def loss_terms(x):
         r, ok, J = evaluate(x)
@@ -239,7 +240,7 @@ def evaluate(targets: Sequence[StaticTarget], params, scale=None,
     before and after a fit (``scale=fit.scale``)."""
     names = check_parameters(params)
     x = np.zeros(len(names)) if scale is None else np.log(np.asarray(scale, float))
-    r, ok = jax.jit(static_residual_fn(targets, names, settings))(jnp.asarray(x))
+    r, ok = jit(static_residual_fn(targets, names, settings))(jnp.asarray(x))
     if not bool(ok):
         raise RuntimeError("calibration: a solve did not converge while evaluating targets")
     return np.asarray(r)

@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import element, inertia, lie
+from ._xla import jit
 from .assembly import (_nodal_load, apply_constraints, assemble_blocks, assemble_vector,
                        block_solve, dead_distributed_force, element_force_and_tangent,
                        element_load_force, factorize, follower_distributed_load,
@@ -520,7 +521,7 @@ def simulate(model: Model, dyn: Dynamics, settings: DynamicSettings, state: Stat
     return _simulate(model, dyn, settings, state, damped=damped, differentiable=differentiable)
 
 
-@partial(jax.jit, static_argnames=("settings", "damped", "differentiable"))
+@jit(static_argnames=("settings", "damped", "differentiable"))
 def _simulate(model: Model, dyn: Dynamics, settings: DynamicSettings, state: State | None,
               damped: bool = True, differentiable: bool = False) -> Trajectory:
     if differentiable and dyn.slide_drives:

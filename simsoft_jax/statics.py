@@ -11,13 +11,13 @@ block-tridiagonal tangent through ``lax.custom_linear_solve`` (its transpose for
 """
 from __future__ import annotations
 
-from functools import partial
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 
 from . import lie
+from ._xla import jit
 from .assembly import block_solve, implicit_solve, residual, residual_and_tangent
 from .model import Model
 
@@ -235,7 +235,7 @@ def _implicit_jvp(primals, tangents):
     return (R, p), (dR, dp)
 
 
-@partial(jax.jit, static_argnames="settings")
+@jit(static_argnames="settings")
 def solve_static(model: Model, settings: StaticSettings = StaticSettings()) -> Equilibrium:
     """Static equilibrium of ``model`` under its full loads (spec S70-S71).
 

@@ -19,13 +19,13 @@ runs until the slowest point has converged; converged points are left unchanged)
 """
 from __future__ import annotations
 
-from functools import partial
 from typing import Callable
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._xla import jit
 from .dynamics import DynamicSettings, Dynamics, Trajectory, simulate
 from .model import Model
 from .statics import Equilibrium, StaticSettings, solve_static
@@ -69,12 +69,12 @@ def _map(fn, points: dict, chunk: int | None):
     return jax.lax.map(fn, points, batch_size=int(chunk))
 
 
-@partial(jax.jit, static_argnames=("vary", "settings", "chunk"))
+@jit(static_argnames=("vary", "settings", "chunk"))
 def _static(model, points, vary, settings, chunk):
     return _map(lambda q: solve_static(vary(model, q), settings), points, chunk)
 
 
-@partial(jax.jit, static_argnames=("vary", "settings"))
+@jit(static_argnames=("vary", "settings"))
 def _static_warm(model, points, vary, settings):
     def step(start, q):
         m = vary(model, q)
@@ -117,7 +117,7 @@ def static_sweep(model: Model, vary: Callable, points: dict,
     return eq
 
 
-@partial(jax.jit, static_argnames=("vary", "settings", "damped", "chunk"))
+@jit(static_argnames=("vary", "settings", "damped", "chunk"))
 def _dynamic(model, dyn, points, vary, settings, damped, chunk):
     def one(q):
         m, d = vary(model, dyn, q)
