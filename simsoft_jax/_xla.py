@@ -33,24 +33,34 @@ def compiler_options() -> dict:
 
 class _Jitted:
     """A ``jax.jit``-ed function created at its first use (so importing the package
-    neither starts the XLA backend nor compiles anything); forwards calls and ``lower``."""
+    neither starts the XLA backend nor compiles anything); forwards calls and ``lower``.
+
+    JAX accepts compile options on the outermost ``jit`` only, so a call with traced
+    arguments (inside a user's ``jit``, ``vmap`` or ``grad``) goes to a plain ``jax.jit``
+    of the same function, and the enclosing computation is compiled with its own options.
+    """
 
     def __init__(self, fun, kwargs):
-        self._fun, self._kwargs, self._jitted = fun, kwargs, None
+        self._fun, self._kwargs = fun, kwargs
+        self._top, self._nested = None, None
         functools.update_wrapper(self, fun)
 
-    def _get(self):
-        if self._jitted is None:
+    def _top_level(self):
+        if self._top is None:
             options = compiler_options()
             extra = {"compiler_options": options} if options else {}
-            self._jitted = jax.jit(self._fun, **self._kwargs, **extra)
-        return self._jitted
+            self._top = jax.jit(self._fun, **self._kwargs, **extra)
+        return self._top
 
     def __call__(self, *args, **kwargs):
-        return self._get()(*args, **kwargs)
+        if any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves((args, kwargs))):
+            if self._nested is None:
+                self._nested = jax.jit(self._fun, **self._kwargs)
+            return self._nested(*args, **kwargs)
+        return self._top_level()(*args, **kwargs)
 
     def lower(self, *args, **kwargs):
-        return self._get().lower(*args, **kwargs)
+        return self._top_level().lower(*args, **kwargs)
 
 
 def jit(fun=None, **kwargs):

@@ -31,3 +31,6 @@ def test_solve_static_matches_plain_jit():
     assert int(ours.iterations) == int(plain.iterations)
     np.testing.assert_allclose(np.asarray(ours.p), np.asarray(plain.p), rtol=0, atol=1e-13)
     assert sj.solve_static.lower(model).compile() is not None
+    # inside a user's jit (JAX takes compile options on the outermost jit only)
+    nested = jax.jit(lambda m: sj.solve_static(m).p)(model)
+    np.testing.assert_allclose(np.asarray(nested), np.asarray(plain.p), rtol=0, atol=1e-13)
