@@ -10,7 +10,7 @@ from element blocks (closed-form stress and dead-load tangents, ``jacfwd`` of th
 gyroscopic and follower-load terms; block-tridiagonal), factorized once and reused over
 iterations and steps while the iteration contracts (modified Newton, see
 :func:`_newton_step`), starting from a predictor chosen from the recent accelerations
-(:func:`predicted_increment`). Parameters from rho_inf (S53).
+(:func:`newton_memory.predicted_increment`). Parameters from rho_inf (S53).
 Held dofs (clamps, pins, drives) are eliminated: their ``w`` is prescribed (spec 4.5).
 A step whose Newton solve fails is retried with halved sub-steps before the run stops
 and reports where. Rollouts are ``lax.scan``; gradients go through each step's Newton
@@ -36,6 +36,8 @@ from .assembly import (_nodal_load, apply_constraints, assemble_blocks, assemble
 from .drives import held_increments, reduce, slide_maps
 from .loads import LoadChannels, build_channels, loaded_model
 from .model import Model
+from .newton_memory import (NewtonMemory, empty_newton_memory, predicted_increment,
+                            remember_step)
 from .statics import step_norm
 
 
@@ -286,76 +288,14 @@ def _step_functions(model, dyn, settings, state, h, damped):
     return new_state, residual, newton_residual, residual_and_matrix, t1
 
 
-class NewtonMemory(NamedTuple):
-    """What the Newton solver carries from step to step. factors: the factorized iteration
-    matrix (see :func:`assembly.factorize`); h: the step size (s) it was built for; renew:
-    rebuild it at the start of the next step (the last step had to rebuild it mid-way);
-    vd_history (2,N,6): the accelerations one and two accepted steps back; h_history (2,):
-    the sizes (s) of the last and the one-but-last accepted steps (0: none yet), for
-    :func:`predicted_increment`."""
-    factors: tuple
-    h: jax.Array
-    renew: jax.Array
-    vd_history: jax.Array
-    h_history: jax.Array
-
-
-def empty_newton_memory(model: Model) -> NewtonMemory:
-    """A :class:`NewtonMemory` of the right shapes with no history (the matrix is built at
-    first use)."""
-    n = model.structure.n_nodes
-    blocks = (jnp.zeros((n, 6, 6)), jnp.zeros((n - 1, 6, 6)), jnp.zeros((n - 1, 6, 6)))
-    shapes = jax.eval_shape(factorize, blocks)
-    zeros = jax.tree_util.tree_map(lambda x: jnp.zeros(x.shape, x.dtype), shapes)
-    return NewtonMemory(zeros, jnp.asarray(-1.0), jnp.asarray(True), jnp.zeros((2, n, 6)),
-                        jnp.zeros(2))
-
-
-def remember_step(memory: NewtonMemory, vd, h, accepted) -> NewtonMemory:
-    """``memory`` with the accelerations ``vd`` (N,6) at the start of an accepted step of
-    size h pushed onto its history (unchanged when not ``accepted``)."""
-    history = jnp.stack([vd, memory.vd_history[0]])
-    sizes = jnp.stack([jnp.asarray(h, jnp.float64), memory.h_history[0]])
-    return memory._replace(vd_history=jnp.where(accepted, history, memory.vd_history),
-                           h_history=jnp.where(accepted, sizes, memory.h_history))
-
-
-def predicted_increment(settings: DynamicSettings, state: State, h, memory: NewtonMemory):
-    """Starting guess ``w0`` (N,6) of a step of size h (spec S60 with a chosen ``vdot``).
-
-    The increment is ``w = h v_n + h^2 ((1/2 - beta) a_n + beta a_{n+1})`` (S66); only
-    ``a_{n+1}`` is unknown, and it follows from a guess of ``vdot_{n+1}`` through S52.
-    Three guesses: zero (the textbook predictor of S60), constant ``vdot_n``, and linear
-    extrapolation ``vdot_n + (h / h_n)(vdot_n - vdot_{n-1})``. The one used is the guess
-    that would have predicted ``vdot_n`` best from the step before (constant before there
-    is a history). Smooth motions take the extrapolation (seed's synthetic helical scene:
-    residual evaluations in 300 steps with the textbook, constant and extrapolated guess
-    1302, 1129 and 932); on stiff ones with oscillating accelerations extrapolation
-    overshoots (spring-steel scene: 2423, 2593 and 3087; selected: 2505). The guess
-    changes the iteration count only, not the solution.
-    """
-    alpha_m, alpha_f, _, beta = alpha_parameters(settings.rho_inf)
-    (vd1, vd2), (h1, h2) = memory.vd_history, memory.h_history
-    vd = state.vd
-    safe = lambda x: jnp.maximum(x, 1e-300)  # noqa: E731
-    linear = vd + (h / safe(h1)) * (vd - vd1)
-    errors = jnp.stack([
-        jnp.where(h1 > 0.0, jnp.linalg.norm(vd), jnp.inf),
-        jnp.where(h1 > 0.0, jnp.linalg.norm(vd - vd1), 0.0),
-        jnp.where(h2 > 0.0, jnp.linalg.norm(vd - vd1 - (h1 / safe(h2)) * (vd1 - vd2)), jnp.inf)])
-    guesses = jnp.stack([jnp.zeros_like(vd), vd, linear])
-    vd_next = guesses[jnp.argmin(errors)]
-    a1 = ((1.0 - alpha_f) * vd_next + alpha_f * vd - alpha_m * state.a) / (1.0 - alpha_m)
-    return h * (state.v + (0.5 - beta) * h * state.a + beta * h * a1)
-
-
 # A reused iteration matrix is kept while each correction is at most this fraction of the
 # previous one (linear contraction of modified Newton); otherwise it is rebuilt at once.
 _CONTRACTION_LIMIT = 0.1
 
 
 def _newton_step(model, dyn, settings, state, h, damped, memory: NewtonMemory):
-    """Modified Newton on F(w) = 0 (spec S66) from :func:`predicted_increment`. Returns
+    """Modified Newton on F(w) = 0 (spec S66) from :func:`newton_memory.predicted_increment`.
+    Returns
     (w, iterations, converged, memory), the memory with the matrix in use at the end.
 
     The factorized iteration matrix ``S_t`` (S61) is reused from earlier iterations and
@@ -372,7 +312,8 @@ def _newton_step(model, dyn, settings, state, h, damped, memory: NewtonMemory):
     _, _, newton_residual, residual_and_matrix, t1 = _step_functions(
         model, dyn, settings, state, h, damped)
     mask = model.structure.free_mask()
-    w0 = predicted_increment(settings, state, h, memory)
+    alpha_m, alpha_f, _, beta = alpha_parameters(settings.rho_inf)
+    w0 = predicted_increment(state.v, state.vd, state.a, h, memory, alpha_m, alpha_f, beta)
     w0 = jnp.where(mask > 0, w0, held_increments(model, dyn, state, t1))
 
     def body(c):
@@ -552,7 +493,7 @@ def _simulate(model: Model, dyn: Dynamics, settings: DynamicSettings, state: Sta
         return carry, (st.t, st.R, st.p, st.v, its, subs)
 
     n_saves = settings.steps // settings.save_every
-    carry0 = (state, jnp.array(False), jnp.array(jnp.nan), empty_newton_memory(model))
+    carry0 = (state, jnp.array(False), jnp.array(jnp.nan), empty_newton_memory(model.structure.n_nodes))
     (final, failed, failed_at, _), (t, R, p, v, its, subs) = jax.lax.scan(
         save_block, carry0, None, length=n_saves)
     cat = lambda first, rest: jnp.concatenate([first[None], rest])  # noqa: E731
