@@ -19,9 +19,6 @@ import jax.numpy as jnp
 from . import element, lie
 from .model import Model
 
-_ZERO12 = jnp.zeros(12)
-
-
 def dead_distributed_force(model: Model, lam):
     """``-lam (q_world + rho_a g)`` (3,) per element as a function of ``(rho_a, q_world)``:
     the dead force per unit length (N/m) of gravity and world-frame distributed loads on
@@ -54,19 +51,21 @@ def follower_load_and_tangent(load, d, P, length, q_local):
     return val, jac @ P
 
 
-def element_force_and_tangent(P, d, stress, stress_jacobian, RA, length, dead_force=None,
-                              follower=None, q_local=None):
+def element_force_and_tangent(P, d, stress, stress_jacobian, RA, length, dead, follower,
+                              rho_a, q_world, q_local):
     """Nodal forces (12,) and left-invariant tangent (12,12) of one element from its section
-    stress (6,) and ``d stress / d d`` (6,6) (elastic, plus viscous in dynamics), a dead
-    distributed force ``dead_force`` (3,) (N/m, world frame, residual sign) and a follower
-    load ``follower`` (:func:`follower_distributed_load`) with its ``q_local`` (3,).
+    stress (6,) and ``d stress / d d`` (6,6) (elastic, plus viscous in dynamics) and its
+    distributed loads: ``dead`` (:func:`dead_distributed_force`, of ``rho_a, q_world``) and
+    ``follower`` (:func:`follower_distributed_load`, of ``q_local`` (3,)), each None when
+    the scene has none.
 
     The dead load enters as an extra stress and stress Jacobian plus rigid-motion terms
     (:func:`element.dead_load_terms`), so one geometric term serves both (spec S42, S44).
     """
     direct = None
-    if dead_force is not None:
-        s_q, S_q, f_direct, K_direct = element.dead_load_terms(RA, d, P, length, dead_force)
+    if dead is not None:
+        s_q, S_q, f_direct, K_direct = element.dead_load_terms(RA, d, P, length,
+                                                               dead(rho_a, q_world))
         stress, stress_jacobian = stress + s_q, stress_jacobian + S_q
         direct = (f_direct, K_direct)
     f, k = element.stress_force_and_tangent(P, d, stress, stress_jacobian)
@@ -78,12 +77,12 @@ def element_force_and_tangent(P, d, stress, stress_jacobian, RA, length, dead_fo
     return f, k
 
 
-def element_load_force(RA, d, P, length, dead_force=None, follower=None, q_local=None):
-    """Nodal forces (12,) of an element's distributed loads (value only; see
-    :func:`element_force_and_tangent` for the arguments)."""
+def element_load_force(RA, d, P, length, dead, follower, rho_a, q_world, q_local):
+    """Nodal forces (12,) of an element's distributed loads (value only; zero when both
+    ``dead`` and ``follower`` are None; see :func:`element_force_and_tangent`)."""
     f = jnp.zeros(12, d.dtype)
-    if dead_force is not None:
-        s_q, _, f_direct, _ = element.dead_load_terms(RA, d, P, length, dead_force)
+    if dead is not None:
+        s_q, _, f_direct, _ = element.dead_load_terms(RA, d, P, length, dead(rho_a, q_world))
         f = f + P.T @ s_q + f_direct
     if follower is not None:
         f = f + follower(d, P, length, q_local)
@@ -96,12 +95,8 @@ def _element_residual(model: Model, lam):
 
     def residual(RA, d, d0, length, stiffness, rho_a, q_world, q_local):
         P = element.strain_map(d)
-        r = element.internal_force(P, d, d0, length, stiffness)
-        if dead is not None or follower is not None:
-            r = r + element_load_force(RA, d, P, length,
-                                       None if dead is None else dead(rho_a, q_world),
-                                       follower, q_local)
-        return r
+        return (element.internal_force(P, d, d0, length, stiffness)
+                + element_load_force(RA, d, P, length, dead, follower, rho_a, q_world, q_local))
 
     return residual
 
@@ -178,7 +173,7 @@ def residual_and_tangent(model: Model, R, p, lam=1.0):
         P = element.strain_map(d)
         return element_force_and_tangent(
             P, d, stiffness * (d - d0) / length, jnp.diag(stiffness / length), RA, length,
-            None if dead is None else dead(rho_a, q_world), follower, q_local)
+            dead, follower, rho_a, q_world, q_local)
 
     f_el, k_el = jax.vmap(value_and_jac)(*_element_args(model, R, p))
     r = assemble_vector(s.n_nodes, s.element_nodes, f_el)

@@ -179,10 +179,7 @@ def _element_residual(model: Model, dyn: Dynamics, damped: bool):
         r = r + element.internal_force(P, d, d0, length, stiffness)
         if damped:
             r = r + element.viscous_force(P, ve, length, visc)
-        if dead is not None or follower is not None:
-            r = r + element_load_force(RA, d, P, length,
-                                       None if dead is None else dead(inert[0], qw), follower, ql)
-        return r
+        return r + element_load_force(RA, d, P, length, dead, follower, inert[0], qw, ql)
 
     return residual
 
@@ -221,9 +218,8 @@ def residual_and_iteration_matrix(model, dyn, R, p, v, vd, w, beta_p, gamma_p, d
             stress = stress + visc * rate(d)
             stress_jac = stress_jac + visc[:, None] * jax.jacfwd(rate)(d)
             C = C + P.T @ (visc[:, None] * P) / length
-        f, K = element_force_and_tangent(P, d, stress, stress_jac, RA, length,
-                                         None if dead is None else dead(inert[0], qw),
-                                         follower, ql)
+        f, K = element_force_and_tangent(P, d, stress, stress_jac, RA, length, dead, follower,
+                                         inert[0], qw, ql)
         return f + mass @ vde + g, K, C, mass
 
     f_el, K_el, C_el, M_el = jax.vmap(value_and_blocks)(*_element_args(model, dyn, R, p, v, vd))
@@ -289,14 +285,14 @@ def _step_functions(model, dyn, settings, state, h, damped):
 
 
 # A reused iteration matrix is kept while each correction is at most this fraction of the
-# previous one (linear contraction of modified Newton); otherwise it is rebuilt at once.
+# previous one (linear contraction of modified Newton); otherwise it is rebuilt for the
+# next iteration (see _newton_step for which corrections are kept).
 _CONTRACTION_LIMIT = 0.1
 
 
 def _newton_step(model, dyn, settings, state, h, damped, memory: NewtonMemory):
     """Modified Newton on F(w) = 0 (spec S66) from :func:`newton_memory.predicted_increment`.
-    Returns
-    (w, iterations, converged, memory), the memory with the matrix in use at the end.
+    Returns (w, iterations, converged, memory), the memory with the matrix in use at the end.
 
     The factorized iteration matrix ``S_t`` (S61) is reused from earlier iterations and
     earlier steps of the same size h; only the residual is evaluated at each iterate. A
@@ -304,8 +300,8 @@ def _newton_step(model, dyn, settings, state, h, damped, memory: NewtonMemory):
     (but contracts) is applied and the matrix rebuilt at the new iterate; one that does
     not contract, is not finite or leaves the rotation branch is discarded and the matrix
     rebuilt at the current iterate; the matrix is also rebuilt at the start of a step when
-    the previous step rebuilt it. With a fresh matrix the iteration is exact Newton. Approximating ``S_t`` changes only
-    the convergence rate, not the solution (spec 4.4). Converged when the estimated
+    the previous step rebuilt it. With a fresh matrix the iteration is exact Newton.
+    Approximating ``S_t`` changes only the convergence rate, not the solution (spec 4.4). Converged when the estimated
     distance to the solution, ``|dw| theta / (1 - theta)`` with the observed contraction
     ``theta`` (``|dw|`` itself at the first iteration), is below the tolerance.
     """

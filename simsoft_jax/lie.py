@@ -93,11 +93,17 @@ def inverse_coefficients(w):
     return g2, g4
 
 
+def _coefficients_and_slopes(group, w):
+    """Coefficients of ``group`` at rotation vector ``w`` and their derivatives with respect
+    to ``x = |w|^2`` (forward mode, safe at 0; spec S24), each stacked (k,)."""
+    return jax.jvp(lambda x: _coefficients_of(group, x), (jnp.dot(w, w),),
+                   (jnp.ones((), w.dtype),))
+
+
 def inverse_coefficients_and_derivatives(w):
     """``(g2, g4)`` at rotation vector ``w`` and their derivatives with respect to
     ``x = |w|^2``, ``((g2, g4), (dg2/dx, dg4/dx))`` (forward mode, safe at 0; spec S24)."""
-    values, slopes = jax.jvp(lambda x: _coefficients_of(_INVERSE, x), (jnp.dot(w, w),),
-                             (jnp.ones((), w.dtype),))
+    values, slopes = _coefficients_and_slopes(_INVERSE, w)
     return (values[0], values[1]), (slopes[0], slopes[1])
 
 
@@ -110,8 +116,7 @@ def translation_coefficients(w):
     ``c1' = -c3/2``, ``c2' = c4/2``; the second derivatives come from one forward-mode
     derivative of ``c3, c4`` (safe at 0, spec S24).
     """
-    values, slopes = jax.jvp(lambda x: _coefficients_of(_FORWARD, x), (jnp.dot(w, w),),
-                             (jnp.ones((), w.dtype),))
+    values, slopes = _coefficients_and_slopes(_FORWARD, w)
     _, beta, a2, c3, c4 = values
     return (0.5 * beta, a2), (-0.5 * c3, 0.5 * c4), (-0.5 * slopes[3], 0.5 * slopes[4])
 
