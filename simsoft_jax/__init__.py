@@ -18,13 +18,18 @@ For gradients and sweeps work with the Model directly::
 
     model = sj.build_model(scene)
     eq = sj.solve_static(model)             # jit-compiled, vmap- and grad-able
+    traj = sj.simulate(model, sj.DynamicSettings(dt=0.01, steps=300))
+
+The Model is the one pytree every solver reads (stiffness, inertia, loads and time laws,
+drives, initial velocities); replacing any of its arrays never recompiles.
 """
 import jax as _jax
 
 _jax.config.update("jax_enable_x64", True)
 
-from . import assembly, dynamics, element, kinematics, lie  # noqa: E402
-from .dynamics import DynamicSettings, Trajectory, build_dynamics, simulate  # noqa: E402
+from .dynamics import (DynamicSettings, State, Trajectory, energy,  # noqa: E402
+                       initial_state, rollout, simulate)
+from .loads import LoadChannels  # noqa: E402
 from .materials import BUILTIN_MATERIALS, Material, get_material  # noqa: E402
 from .model import Model, Structure, build_model  # noqa: E402
 from .results import Result, run  # noqa: E402
@@ -33,13 +38,14 @@ from .sections import (Section, circle, custom_inertia, custom_stiffness,  # noq
                        inertia_diagonal, rectangle, semicircle, stiffness_diagonal, tube,
                        viscosity_diagonal)
 from .statics import Equilibrium, StaticSettings, solve_static  # noqa: E402
+from .status import SolveError, Status  # noqa: E402
 
 __all__ = [
-    "BUILTIN_MATERIALS", "DynamicSettings", "Equilibrium", "Trajectory", "assembly",
-    "build_dynamics", "dynamics", "element", "simulate", "Material", "Model", "Result", "Scene", "Section",
-    "StaticSettings", "Structure", "build_model", "circle", "custom_inertia",
-    "custom_stiffness", "get_material", "inertia_diagonal", "kinematics", "lie",
-    "load_scene", "rectangle", "run", "save_scene", "semicircle", "solve_static",
+    "BUILTIN_MATERIALS", "DynamicSettings", "Equilibrium", "LoadChannels", "Material",
+    "Model", "Result", "Scene", "Section", "SolveError", "State", "StaticSettings", "Status",
+    "Structure", "Trajectory", "build_model", "circle", "custom_inertia", "custom_stiffness",
+    "energy", "get_material", "inertia_diagonal", "initial_state", "load_scene", "rectangle",
+    "rollout", "run", "save_scene", "semicircle", "simulate", "solve_static",
     "stiffness_diagonal", "tube", "viscosity_diagonal",
 ]
 __version__ = "0.1.0"

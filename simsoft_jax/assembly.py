@@ -2,10 +2,14 @@
 
 Residual convention (spec S47, S70): ``r = f_int - lam * f_ext`` per node (N,6), in the
 nodal frames. Tangent (left-invariant, S70): ``K_t = d r(q o exp(xi)) / d xi`` at xi = 0,
-built from per-element 12x12 blocks (never the global residual): the elastic part, gravity,
-world-frame distributed loads and nodal loads in closed form
-(:func:`element_force_and_tangent`), follower distributed loads by ``jax.jacfwd`` in 6
-directions. They are assembled into a
+built from per-element 12x12 blocks (never the global residual). The residual itself is the
+sum of the residual terms of :mod:`simsoft_jax.terms`. Two tangent paths, chosen for a
+whole solve by ``tangent``: ``"closed_form"`` (the elastic part, gravity, world-frame
+distributed loads and nodal loads in closed form, :func:`element_force_and_tangent`;
+follower distributed loads by ``jax.jacfwd`` in 6 directions) and ``"autodiff"``
+(``jax.jacfwd`` of the sum of the terms in the 12 frame perturbations,
+:mod:`simsoft_jax.terms.autodiff`); both give the same exact tangent. They are assembled
+into a
 block-tridiagonal matrix of 6x6 blocks ``(diag (N,6,6), upper (N-1,6,6), lower (N-1,6,6))``,
 ``upper[i] = K[i, i+1]``, ``lower[i] = K[i+1, i]``. Held dofs get an identity row/column and
 a zero residual, so the structure never changes. Linear solves: :func:`factorize` (dense
@@ -18,6 +22,18 @@ import jax.numpy as jnp
 
 from . import element, lie
 from .model import Model
+from .terms import ElementData, element_state
+from .terms import autodiff as term_tangents
+
+TANGENTS = ("closed_form", "autodiff")
+
+
+def check_tangent(tangent: str) -> str:
+    """``tangent`` if it names a tangent path, else a clear error."""
+    if tangent not in TANGENTS:
+        raise ValueError(f"tangent: must be one of {TANGENTS}, got {tangent!r}")
+    return tangent
+
 
 def dead_distributed_force(model: Model, lam):
     """``-lam (q_world + rho_a g)`` (3,) per element as a function of ``(rho_a, q_world)``:
@@ -77,43 +93,24 @@ def element_force_and_tangent(P, d, stress, stress_jacobian, RA, length, dead, f
     return f, k
 
 
-def element_load_force(RA, d, P, length, dead, follower, rho_a, q_world, q_local):
-    """Nodal forces (12,) of an element's distributed loads (value only; zero when both
-    ``dead`` and ``follower`` are None; see :func:`element_force_and_tangent`)."""
-    f = jnp.zeros(12, d.dtype)
-    if dead is not None:
-        s_q, _, f_direct, _ = element.dead_load_terms(RA, d, P, length, dead(rho_a, q_world))
-        f = f + P.T @ s_q + f_direct
-    if follower is not None:
-        f = f + follower(d, P, length, q_local)
-    return f
+def element_data(model: Model, maps=None, masses=None) -> ElementData:
+    """The per-element model arrays (E, ...) of :class:`~simsoft_jax.terms.ElementData`
+    (``maps``, ``masses``: element inertia in dynamics, None in statics)."""
+    n = model.length.shape[0]
+    return ElementData(model.d0, model.length, model.stiffness, model.inertia,
+                       model.viscosity, model.distributed_world, model.distributed_local,
+                       jnp.broadcast_to(model.gravity, (n, 3)), maps, masses)
 
 
-def _element_residual(model: Model, lam):
-    """Residual (12,) of one element as a function of ``R_A``, ``d`` and element data."""
-    dead, follower = dead_distributed_force(model, lam), follower_distributed_load(model, lam)
-
-    def residual(RA, d, d0, length, stiffness, rho_a, q_world, q_local):
-        P = element.strain_map(d)
-        return (element.internal_force(P, d, d0, length, stiffness)
-                + element_load_force(RA, d, P, length, dead, follower, rho_a, q_world, q_local))
-
-    return residual
+def element_poses(model: Model, R, p):
+    """Frames of the two nodes of every element: RA, pA, RB, pB (E,3,3)/(E,3)."""
+    a = jnp.asarray(model.structure.element_nodes)
+    return R[a], p[a], R[a + 1], p[a + 1]
 
 
 def _nodal_load(model: Model, lam):
-    """``-lam f_ext`` at one node (dead: ``[R^T F; R^T M]``, follower: local; spec S43)."""
-    s = model.structure
-
-    def load(R, dead, follower):
-        r = jnp.zeros(6)
-        if s.has_nodal_dead:
-            r = r - lam * jnp.concatenate([R.T @ dead[:3], R.T @ dead[3:]])
-        if s.has_nodal_follower:
-            r = r - lam * follower
-        return r
-
-    return load
+    """``-lam f_ext`` at one node (:mod:`simsoft_jax.terms.nodal`; spec S43)."""
+    return term_tangents.node_residual(model.structure, lam)
 
 
 def _element_args(model: Model, R, p):
@@ -138,12 +135,15 @@ def assemble_blocks(n_nodes, element_nodes, k_el):
     return diag, upper, lower
 
 
-def nodal_load_and_tangent(model: Model, lam, R):
+def nodal_load_and_tangent(model: Model, lam, R, tangent: str = "closed_form"):
     """``-lam f_ext`` per node (N,6) and its left-invariant derivative (N,6,6) (spec S43):
     with ``a = R^T F`` (dead force or moment), ``(R exp(theta))^T F = a + skew(a) theta``,
     so the rotation columns hold ``-lam skew(R^T F)``, ``-lam skew(R^T M)``; follower loads
-    do not depend on the frame."""
+    do not depend on the frame. ``tangent="autodiff"``: ``jax.jacfwd`` of the node terms."""
     s = model.structure
+    if tangent == "autodiff":
+        return jax.vmap(term_tangents.node_tangent(s, lam))(R, model.nodal_dead,
+                                                            model.nodal_follower)
     r = jax.vmap(_nodal_load(model, lam))(R, model.nodal_dead, model.nodal_follower)
     k = jnp.zeros(R.shape[:1] + (6, 6), R.dtype)
     if s.has_nodal_dead:
@@ -154,32 +154,44 @@ def nodal_load_and_tangent(model: Model, lam, R):
 
 
 def residual(model: Model, R, p, lam=1.0):
-    """Global residual (N,6), held dofs zeroed (spec S47/S70)."""
+    """Global residual (N,6), held dofs zeroed (spec S47/S70): the sum of the terms."""
     s = model.structure
-    f_el = jax.vmap(_element_residual(model, lam))(*_element_args(model, R, p))
+    zeros = jnp.zeros((s.n_elements, 12), p.dtype)
+    element_residual = term_tangents.element_residual(s, lam, dynamic=False)
+    f_el = jax.vmap(lambda RA, pA, RB, pB, data: element_residual(
+        element_state(RA, pA, RB, pB, zeros[0], zeros[0]), data))(
+        *element_poses(model, R, p), element_data(model))
     r = assemble_vector(s.n_nodes, s.element_nodes, f_el)
     if s.has_nodal_dead or s.has_nodal_follower:
         r = r + jax.vmap(_nodal_load(model, lam))(R, model.nodal_dead, model.nodal_follower)
     return r * s.free_mask()
 
 
-def residual_and_tangent(model: Model, R, p, lam=1.0):
-    """Residual (N,6) and block-tridiagonal tangent ``(diag, upper, lower)`` (spec S70)."""
+def residual_and_tangent(model: Model, R, p, lam=1.0, tangent: str = "closed_form"):
+    """Residual (N,6) and block-tridiagonal tangent ``(diag, upper, lower)`` (spec S70),
+    by the ``tangent`` path ("closed_form" or "autodiff", see the module docstring)."""
     s = model.structure
-    dead, follower = dead_distributed_force(model, lam), follower_distributed_load(model, lam)
+    if tangent == "autodiff":
+        zero = jnp.zeros(12, p.dtype)
+        tangents = term_tangents.element_tangents(s, lam, dynamic=False)
+        f_el, k_el, _, _ = jax.vmap(lambda RA, pA, RB, pB, data: tangents(
+            RA, pA, RB, pB, zero, zero, data))(*element_poses(model, R, p), element_data(model))
+    else:
+        dead = dead_distributed_force(model, lam)
+        follower = follower_distributed_load(model, lam)
 
-    def value_and_jac(RA, d, d0, length, stiffness, rho_a, q_world, q_local):
-        # elastic stress and loads in closed form (spec S42, S44); follower loads by jacfwd
-        P = element.strain_map(d)
-        return element_force_and_tangent(
-            P, d, stiffness * (d - d0) / length, jnp.diag(stiffness / length), RA, length,
-            dead, follower, rho_a, q_world, q_local)
+        def value_and_jac(RA, d, d0, length, stiffness, rho_a, q_world, q_local):
+            # elastic stress and loads in closed form (spec S42, S44); follower loads by jacfwd
+            P = element.strain_map(d)
+            return element_force_and_tangent(
+                P, d, stiffness * (d - d0) / length, jnp.diag(stiffness / length), RA, length,
+                dead, follower, rho_a, q_world, q_local)
 
-    f_el, k_el = jax.vmap(value_and_jac)(*_element_args(model, R, p))
+        f_el, k_el = jax.vmap(value_and_jac)(*_element_args(model, R, p))
     r = assemble_vector(s.n_nodes, s.element_nodes, f_el)
     diag, upper, lower = assemble_blocks(s.n_nodes, s.element_nodes, k_el)
     if s.has_nodal_dead or s.has_nodal_follower:
-        f_n, k_n = nodal_load_and_tangent(model, lam, R)
+        f_n, k_n = nodal_load_and_tangent(model, lam, R, tangent)
         r = r + f_n
         diag = diag + k_n
     return apply_constraints(s.free_mask(), r, (diag, upper, lower))

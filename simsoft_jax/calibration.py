@@ -24,7 +24,7 @@ import numpy as np
 import optax
 
 from ._xla import jit
-from .dynamics import DynamicSettings, Dynamics, simulate
+from .dynamics import DynamicSettings, simulate
 from .model import Model
 from .statics import StaticSettings, solve_static
 
@@ -264,13 +264,13 @@ def fit_static(targets: Sequence[StaticTarget], params, x0=None, optimizer=None,
     return _make_fit(names, targets[0].model, result)
 
 
-def fit_trajectory(model: Model, dyn: Dynamics, settings: DynamicSettings, node: int,
-                   measured, params=("viscosity",), x0=None, damped: bool = True,
+def fit_trajectory(model: Model, settings: DynamicSettings, node: int,
+                   measured, params=("viscosity",), x0=None,
                    optimizer=None, max_steps: int = 100, gradient_tolerance: float = 1e-6,
                    noise_std: float | None = None) -> Fit:
     """Fit ``params`` to a measured trajectory of one node (dynamic identification).
 
-    measured: (T, 3) world positions (m) at the saved times of ``simulate(model, dyn,
+    measured: (T, 3) world positions (m) at the saved times of ``simulate(model,
     settings)`` (T = steps // save_every + 1, the initial state first). Gradients go
     through every step by the implicit function theorem (checkpointed rollout).
     """
@@ -282,8 +282,7 @@ def fit_trajectory(model: Model, dyn: Dynamics, settings: DynamicSettings, node:
                          f"steps saved every {settings.save_every}, got {measured.shape}")
 
     def residual_fn(x):
-        traj = simulate(apply_scales(model, names, x), dyn, settings, damped=damped,
-                        differentiable=True)
+        traj = simulate(apply_scales(model, names, x), settings, differentiable=True)
         return (traj.p[:, node] - measured).ravel(), traj.converged
 
     x0 = np.zeros(len(names)) if x0 is None else np.asarray(x0, float)

@@ -39,18 +39,15 @@ def _run(args) -> int:
         except (ValueError, RuntimeError) as err:
             print(f"error: {err}", file=sys.stderr)
             return 2
-    if result.converged:
-        status = "converged"
-    elif result.time is not None:
-        status = f"NOT converged (step failed at t = {result.failed_at:.6g} s)"
-    else:
-        status = f"NOT converged (load level {result.load_level:.4g})"
+    status = "converged" if result.converged else f"NOT converged: {result.message}"
     detail = (f"{len(result.time)} saved states" if result.time is not None
               else f"residual {result.residual_norm:.3g}")
     print(f"{result.name or args.scene}: {status}; {result.newton_iterations} Newton iterations, "
           f"{detail}, solve {result.wall_time_s:.3f} s, "
           f"compile {result.compile_time_s:.2f} s"
           + (f"; wrote {args.output}" if args.output else ""))
+    if not result.converged:
+        print(f"error: {result.message}", file=sys.stderr)
     return 0 if result.converged else 1
 
 

@@ -1,4 +1,7 @@
-"""Time laws of loads for dynamics: each scene load is a *channel* ``pattern * scale(t)``.
+"""Time laws of loads: each scene load with a non-constant profile is a *channel*
+``pattern * scale(t)`` of the Model (loads with a constant profile are the Model's plain
+load arrays); :func:`loads_at` adds the channels at time t to those arrays, and
+:func:`full_loads` at full scale (statics).
 
 Profiles (scene-format.md): constant 1; ramp ``clip((t - t0)/(t1 - t0), 0, 1)``;
 smoothstep the same passed through ``3x^2 - 2x^3`` (zero slope at both ends); linear
@@ -28,6 +31,10 @@ class LoadChannels:
     nodal_follower: jax.Array
     distributed_world: jax.Array
     distributed_local: jax.Array
+
+    def replace(self, **changes) -> "LoadChannels":
+        """A copy with some arrays replaced (same kinds: no recompilation)."""
+        return dataclasses.replace(self, **changes)
 
 
 jax.tree_util.register_dataclass(
@@ -62,28 +69,42 @@ def scales(channels: LoadChannels, t):
                       for i, k in enumerate(channels.kinds)]) if channels.kinds else jnp.zeros(0)
 
 
-def loaded_model(model, channels: LoadChannels, t):
-    """``model`` with its load tables replaced by the channel sums at time ``t``."""
-    s = scales(channels, t)
-    combine = lambda pattern: jnp.tensordot(s, pattern, axes=1)  # noqa: E731
-    return model.replace(nodal_dead=combine(channels.nodal_dead),
-                         nodal_follower=combine(channels.nodal_follower),
-                         distributed_world=combine(channels.distributed_world),
-                         distributed_local=combine(channels.distributed_local))
+def _with_channels(model, s):
+    """``model`` with each channel's pattern times ``s`` (K,) added to its load arrays."""
+    ch = model.channels
+    if not ch.kinds:
+        return model
+    add = lambda base, pattern: base + jnp.tensordot(s, pattern, axes=1)  # noqa: E731
+    return model.replace(nodal_dead=add(model.nodal_dead, ch.nodal_dead),
+                         nodal_follower=add(model.nodal_follower, ch.nodal_follower),
+                         distributed_world=add(model.distributed_world, ch.distributed_world),
+                         distributed_local=add(model.distributed_local, ch.distributed_local))
 
 
-def build_channels(scene, structure) -> LoadChannels:
-    """One channel per scene load, with its pattern at unit scale."""
+def loads_at(model, t):
+    """``model`` with its load arrays holding the total loads at time ``t`` (s): the
+    constant ones plus every channel at its scale ``scale_k(t)``."""
+    return _with_channels(model, scales(model.channels, t))
+
+
+def full_loads(model):
+    """``model`` with its load arrays holding every load at full scale (each channel's
+    pattern once), as statics applies them."""
+    return _with_channels(model, jnp.ones(len(model.channels.kinds)))
+
+
+def build_channels(loads, structure) -> LoadChannels:
+    """One channel per load spec in ``loads``, with its pattern at unit scale."""
     n, e = structure.n_nodes, structure.n_elements
-    k = len(scene.loads)
+    k = len(loads)
     rods = {r.name: r for r in structure.rods}
     dead, follower = np.zeros((k, n, 6)), np.zeros((k, n, 6))
     dist_world, dist_local = np.zeros((k, e, 3)), np.zeros((k, e, 3))
     params = np.tile([0.0, 1.0, 0.0], (max(k, 0), 1))
-    width = max([2] + [len(ld.profile.t) for ld in scene.loads if ld.profile.kind == "table"])
+    width = max([2] + [len(ld.profile.t) for ld in loads if ld.profile.kind == "table"])
     table_t = np.tile(np.arange(width, dtype=float), (k, 1))
     table_scale = np.zeros((k, width))
-    for i, load in enumerate(scene.loads):
+    for i, load in enumerate(loads):
         info = rods[load.rod]
         if load.kind == "distributed_force":
             target = dist_world if load.frame == "world" else dist_local
@@ -103,6 +124,6 @@ def build_channels(scene, structure) -> LoadChannels:
             table_t[i] = np.concatenate([prof.t, prof.t[-1] + 1.0 + np.arange(width - m)])
             table_scale[i] = np.concatenate([prof.scale, np.full(width - m, prof.scale[-1])])
     f64 = lambda a: jnp.asarray(a, jnp.float64)  # noqa: E731
-    return LoadChannels(tuple(ld.profile.kind for ld in scene.loads), f64(params),
+    return LoadChannels(tuple(ld.profile.kind for ld in loads), f64(params),
                         f64(table_t), f64(table_scale), f64(dead), f64(follower),
                         f64(dist_world), f64(dist_local))

@@ -9,6 +9,12 @@ not use (gravity, follower loads, distributed loads) are not traced at all.
 Node numbering: the nodes of all rods are concatenated in scene order; element ``e``
 joins nodes ``element_nodes[e]`` and ``element_nodes[e] + 1`` (rods are chains), so every
 tangent matrix of a scene is block-tridiagonal with 6x6 blocks.
+
+One model: everything a static or dynamic solve reads lives here (stiffness, inertia,
+viscosity, constant loads, time-dependent load channels, drive tables, initial
+velocities, gravity). Element mass matrices are computed from ``inertia`` inside the
+solvers' trace, so replacing any array of a Model changes the solve and its gradient;
+there is no second object to rebuild.
 """
 from __future__ import annotations
 
@@ -21,6 +27,7 @@ import numpy as np
 
 from . import geometry as geom
 from . import lie
+from .loads import LoadChannels, build_channels
 from .sections import inertia_diagonal, stiffness_diagonal, viscosity_diagonal
 
 
@@ -45,6 +52,10 @@ class Structure:
     has_distributed_world: bool = False
     has_distributed_local: bool = False
     has_gravity: bool = False
+    has_viscosity: bool = False   # Kelvin-Voigt terms traced in dynamics
+    inertia_kind: str = "consistent"   # "consistent" | "lumped" element inertia
+    drive_nodes: tuple = ()       # node index of each drive
+    slide_drives: tuple = ()      # indices (into the drives) of the sliding ones
 
     @property
     def n_elements(self) -> int:
@@ -63,7 +74,7 @@ class Structure:
 
 @dataclasses.dataclass(frozen=True)
 class Model:
-    """Arrays of a discretized scene (SI units). Shapes: N nodes, E elements.
+    """Arrays of a discretized scene (SI units). Shapes: N nodes, E elements, D drives.
 
     R0 (N,3,3), p0 (N,3): configuration the solvers start from (columns of R0 are the
     local axes in world coordinates). d0 (E,6): stress-free relative twists (spec S34).
@@ -72,7 +83,13 @@ class Model:
     nodal_dead (N,6): world-frame force and moment per node (dead loads).
     nodal_follower (N,6): local-frame force and moment per node (follower loads).
     distributed_world / distributed_local (E,3): force per unit length on each element,
-    fixed in space / turning with the section. gravity (3,): m/s^2.
+    fixed in space / turning with the section. These four hold the loads with a constant
+    time law; loads with another time law are ``channels`` (:class:`~simsoft_jax.loads.
+    LoadChannels`, pattern times scale(t)); statics applies both at full scale.
+    gravity (3,): m/s^2. v0 (N,6): initial nodal body velocities ``[linear; angular]``
+    (dynamics). drive_times (D,S), drive_displacement (D,S,3), drive_rotation (D,S,3):
+    drive tables (world frame, relative to the start pose); drive_slide (D,3): unit world
+    direction along which a drive's node slides (zeros for drives holding all six dofs).
     char_length: length scale (m) that makes moments comparable with forces in norms.
     """
     structure: Structure
@@ -89,6 +106,12 @@ class Model:
     distributed_local: jax.Array
     gravity: jax.Array
     char_length: jax.Array
+    channels: LoadChannels
+    v0: jax.Array
+    drive_times: jax.Array
+    drive_displacement: jax.Array
+    drive_rotation: jax.Array
+    drive_slide: jax.Array
 
     def replace(self, **changes) -> "Model":
         """A copy with some arrays replaced (same structure: no recompilation)."""
@@ -150,8 +173,49 @@ def _check_held(scene):
                 "a static solve needs a clamp, a drive or two pins on it")
 
 
+def _initial_velocities(scene, rods, R0, p0):
+    """Nodal body velocities (N,6) of the scene's ``[[initial_velocity]]`` rigid motions."""
+    v0 = np.zeros((len(p0), 6))
+    for iv in scene.initial_velocity:
+        info = rods[iv.rod]
+        base = p0[info.first_node]
+        for i in range(info.first_node, info.first_node + info.nodes):
+            v_world = iv.linear + np.cross(iv.angular, p0[i] - base)
+            v0[i] = np.concatenate([R0[i].T @ v_world, R0[i].T @ iv.angular])
+    return v0
+
+
+def _drive_tables(scene, rods):
+    """Drive tables padded to a common width (holding the last row): times (D,S),
+    displacement (D,S,3), rotation (D,S,3), slide directions (D,3); node indices and
+    the indices of the sliding drives (static)."""
+    drives = [c for c in scene.constraints if c.kind == "drive"]
+    width = max([1] + [len(c.times) for c in drives])
+
+    def hold_last(values):
+        return np.concatenate([values, np.repeat(values[-1:], width - len(values), axis=0)])
+
+    k = len(drives)
+    times = np.array([np.concatenate([c.times, c.times[-1] + 1.0 + np.arange(width - len(c.times))])
+                      for c in drives]).reshape(k, width)
+    disp = np.array([hold_last(c.displacement) for c in drives]).reshape(k, width, 3)
+    rot = np.array([hold_last(c.rotation) for c in drives]).reshape(k, width, 3)
+    slide = np.zeros((k, 3))
+    for j, c in enumerate(drives):
+        if c.slides_along is not None:
+            e = np.asarray(c.slides_along, float)
+            slide[j] = e / np.linalg.norm(e)
+    nodes = tuple(rods[c.rod].first_node + c.node for c in drives)
+    sliding = tuple(j for j, c in enumerate(drives) if c.slides_along is not None)
+    return times, disp, rot, slide, nodes, sliding
+
+
 def build_model(scene) -> Model:
-    """Discretize a validated :class:`~simsoft_jax.scene.Scene` into a :class:`Model`."""
+    """Discretize a validated :class:`~simsoft_jax.scene.Scene` into a :class:`Model`.
+
+    Loads with a constant time law go into the nodal/distributed arrays, the others into
+    ``channels``; the scene's ``[solver].inertia`` chooses the element inertia (static).
+    """
     if scene.solver.kind == "static":
         _check_held(scene)
     rods, elem_nodes = [], []
@@ -187,7 +251,9 @@ def build_model(scene) -> Model:
     nodal_follower = np.zeros((n_nodes, 6))
     dist_world = np.zeros((n_elements, 3))
     dist_local = np.zeros((n_elements, 3))
-    for load in scene.loads:
+    constant = [ld for ld in scene.loads if ld.profile.kind == "constant"]
+    timed = [ld for ld in scene.loads if ld.profile.kind != "constant"]
+    for load in constant:
         info = by_name[load.rod]
         if load.kind == "distributed_force":
             target = dist_world if load.frame == "world" else dist_local
@@ -200,7 +266,10 @@ def build_model(scene) -> Model:
     d0 = np.concatenate(d0)
     length = np.linalg.norm(d0[:, :3], axis=1)
     gravity = np.zeros(3) if scene.gravity is None else np.asarray(scene.gravity, float)
-    loads = [ld for ld in scene.loads]
+    V = np.concatenate(V)
+    R0, p0 = np.concatenate(R0), np.concatenate(p0)
+    times, disp, rot, slide, drive_nodes, sliding = _drive_tables(scene, by_name)
+    loads = scene.loads
     structure = Structure(
         n_nodes=n_nodes, element_nodes=tuple(elem_nodes), rods=tuple(rods),
         free=tuple(free.ravel().tolist()),
@@ -212,13 +281,20 @@ def build_model(scene) -> Model:
         has_distributed_local=any(ld.kind == "distributed_force" and ld.frame == "local"
                                   for ld in loads),
         has_gravity=scene.gravity is not None,
+        has_viscosity=bool(np.any(V != 0.0)),
+        inertia_kind=getattr(scene.solver, "inertia", "consistent"),
+        drive_nodes=drive_nodes, slide_drives=sliding,
     )
     f64 = lambda a: jnp.asarray(a, jnp.float64)  # noqa: E731
     return Model(
-        structure=structure, R0=f64(np.concatenate(R0)), p0=f64(np.concatenate(p0)),
+        structure=structure, R0=f64(R0), p0=f64(p0),
         d0=f64(d0), length=f64(length), stiffness=f64(np.concatenate(K)),
-        inertia=f64(np.concatenate(M)), viscosity=f64(np.concatenate(V)),
+        inertia=f64(np.concatenate(M)), viscosity=f64(V),
         nodal_dead=f64(nodal_dead), nodal_follower=f64(nodal_follower),
         distributed_world=f64(dist_world), distributed_local=f64(dist_local),
         gravity=f64(gravity), char_length=f64(length.mean()),
+        channels=build_channels(timed, structure),
+        v0=f64(_initial_velocities(scene, by_name, R0, p0)),
+        drive_times=f64(times), drive_displacement=f64(disp), drive_rotation=f64(rot),
+        drive_slide=f64(slide),
     )

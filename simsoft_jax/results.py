@@ -7,6 +7,7 @@ a :class:`Result`. ``Result.to_dict()`` is exactly the JSON layout of
 """
 from __future__ import annotations
 
+import collections
 import json
 import time
 from pathlib import Path
@@ -14,22 +15,47 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from .dynamics import Trajectory, build_dynamics, rollout
+from .dynamics import Trajectory, rollout
+from .dynamics.driver import compile_key
 from .model import Model, build_model
 from .scene import Scene, load_scene
-from .statics import settings_from_scene, solve_static
+from .statics import _solve_static, as_traced, settings_from_scene
+from .status import Status
 
-_COMPILED: dict = {}
+
+class _CompiledCache(collections.OrderedDict):
+    """Compiled solver programs by structure, least recently used dropped beyond ``size``
+    (each holds compiled code; a session sweeping many structures must not grow without
+    bound)."""
+
+    def __init__(self, size: int = 16):
+        super().__init__()
+        self.size = size
+
+    def __getitem__(self, key):
+        value = super().__getitem__(key)
+        self.move_to_end(key)
+        return value
+
+    def __setitem__(self, key, value):
+        super().__setitem__(key, value)
+        self.move_to_end(key)
+        while len(self) > self.size:
+            self.popitem(last=False)
+
+
+_COMPILED = _CompiledCache()
 
 
 def compiled_static_solver(model: Model, settings):
-    """The compiled static solver for ``model``'s structure, and the seconds spent compiling
-    it now (0.0 when it was already compiled in this process)."""
-    key = (model.structure, settings)
+    """The compiled static solver for ``model``'s structure and integer settings, and the
+    seconds spent compiling it now (0.0 when it was already compiled in this process).
+    Call it as ``solver(model, as_traced(settings))``."""
+    key = ("static",) + compile_key(model, settings)
     if key in _COMPILED:
         return _COMPILED[key], 0.0
     start = time.perf_counter()
-    compiled = solve_static.lower(model, settings).compile()
+    compiled = _solve_static.lower(model, as_traced(settings)).compile()
     _COMPILED[key] = compiled
     return compiled, time.perf_counter() - start
 
@@ -37,9 +63,12 @@ def compiled_static_solver(model: Model, settings):
 class Result:
     """Outcome of :func:`run`.
 
-    Attributes: name, kind ("static" | "dynamic"), converged (bool), newton_iterations
-    (int, total), residual_norm (static: N, weighted; dynamic: None), load_level (static:
-    fraction of the loads reached), failed_at (dynamic: time of the failed step or None),
+    Attributes: name, kind ("static" | "dynamic"), converged (bool), status (short code:
+    "converged", "max_iterations", "nonfinite", "step_too_small", "off_branch",
+    "max_attempts"), message (one sentence: how the solve ended and where),
+    newton_iterations (int, total), residual_norm (static: N, weighted; dynamic: at the
+    failed step, None when converged), load_level (static: fraction of the loads
+    reached), failed_at (dynamic: time of the failed step or None),
     time ((T,) s, dynamic only), wall_time_s (after compilation), compile_time_s, model,
     raw (the :class:`~simsoft_jax.statics.Equilibrium` or
     :class:`~simsoft_jax.dynamics.Trajectory`).
@@ -52,13 +81,16 @@ class Result:
         self.model = model
         self.raw = raw
         self.converged = bool(raw.converged)
+        self.status = Status(int(raw.status)).code
+        self.message = raw.message()
         self.newton_iterations = int(np.sum(raw.iterations))
         self.wall_time_s = wall_time_s
         self.compile_time_s = compile_time_s
         if isinstance(raw, Trajectory):
             self.time = np.asarray(raw.time)
-            self.residual_norm = self.load_level = None
+            self.load_level = None
             self.failed_at = None if self.converged else float(raw.failed_at)
+            self.residual_norm = None if self.converged else float(raw.residual)
         else:
             self.time = None
             self.residual_norm = float(raw.residual_norm)
@@ -91,6 +123,7 @@ class Result:
     def to_dict(self) -> dict:
         """The result-file layout of the scene-format contract (plain Python types)."""
         d = {"name": self.name, "kind": self.kind, "converged": self.converged,
+             "status": self.status, "message": self.message,
              "newton_iterations": self.newton_iterations,
              "residual_norm": self.residual_norm, "wall_time_s": self.wall_time_s,
              "compile_time_s": self.compile_time_s,
@@ -125,13 +158,12 @@ class Result:
 
 
 def _run_dynamic(scene: Scene, model: Model, progress=None) -> Result:
-    dyn = build_dynamics(model, scene)
     solver = scene.solver
     start = time.perf_counter()
     trajectory, compile_time = rollout(
-        model, dyn, solver.dt, solver.t_end, solver.rho_inf, solver.save_every,
+        model, solver.dt, solver.t_end, solver.rho_inf, solver.save_every,
         progress=progress, compiled=_COMPILED, tolerance=solver.tolerance,
-        max_iterations=solver.max_iterations)
+        max_iterations=solver.max_iterations, tangent=solver.tangent)
     wall = time.perf_counter() - start - compile_time
     return Result(scene, model, jax.block_until_ready(trajectory), wall, compile_time)
 
@@ -154,6 +186,6 @@ def run(scene, progress=None) -> Result:
     settings = settings_from_scene(scene.solver)
     solver, compile_time = compiled_static_solver(model, settings)
     start = time.perf_counter()
-    equilibrium = jax.block_until_ready(solver(model))
+    equilibrium = jax.block_until_ready(solver(model, as_traced(settings)))
     wall = time.perf_counter() - start
     return Result(scene, model, equilibrium, wall, compile_time)

@@ -72,7 +72,7 @@ class Scene(SpecBase):
 _TOP_KEYS = ("name", "solver", "gravity", "materials", "rods", "constraints", "loads",
              "initial_velocity")
 _SOLVER_KEYS = ("kind", "tolerance", "max_iterations", "load_steps", "t_end", "dt",
-                "rho_inf", "save_every", "inertia")
+                "rho_inf", "save_every", "inertia", "tangent")
 _MATERIAL_KEYS = ("name", "E", "G", "nu", "density", "viscosity")
 _ROD_KEYS = ("name", "material", "section", "shear_coefficients", "stiffness", "inertia",
              "elements", "geometry", "base", "initial", "segments")
@@ -159,6 +159,8 @@ def _parse_solver(value: Any) -> SolverSettings:
             fail("solver.rho_inf", f"must be in [0, 1], got {out['rho_inf']}")
     if "inertia" in s:
         out["inertia"] = choice(s["inertia"], "solver.inertia", ("consistent", "lumped"))
+    if "tangent" in s:
+        out["tangent"] = choice(s["tangent"], "solver.tangent", ("closed_form", "autodiff"))
     return SolverSettings(**out)
 
 

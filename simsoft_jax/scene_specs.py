@@ -27,6 +27,7 @@ class SolverSettings(SpecBase):
     rho_inf: float = 0.9
     save_every: int = 1
     inertia: str = "consistent"       # "consistent" | "lumped"
+    tangent: str = "closed_form"      # "closed_form" | "autodiff"
 
 
 @dataclass(frozen=True, eq=False)

@@ -11,19 +11,27 @@ block-tridiagonal tangent through ``lax.custom_linear_solve`` (its transpose for
 """
 from __future__ import annotations
 
+import dataclasses
+from functools import partial
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from . import lie
 from ._xla import jit
-from .assembly import block_solve, implicit_solve, residual, residual_and_tangent
+from .assembly import (block_solve, check_tangent, implicit_solve, residual,
+                       residual_and_tangent)
+from .loads import full_loads
 from .model import Model
+from .status import Status, describe, raise_if_failed
 
 
-class StaticSettings(NamedTuple):
-    """Solver settings (hashable: part of the compiled structure).
+@dataclasses.dataclass(frozen=True)
+class StaticSettings:
+    """Solver settings. Floats are traced (changing them never recompiles); the integers
+    (max_iterations, load_steps, max_attempts, line_search_steps) are static structure.
 
     tolerance: converged when the weighted residual norm is below ``tolerance`` times the
       load scale (forces in N, moments divided by the model's ``char_length``).
@@ -31,14 +39,19 @@ class StaticSettings(NamedTuple):
     load_steps: minimum number of continuation steps (the largest load increment is
       ``1/load_steps``; increments are halved on failure down to ``min_step_fraction`` of it,
       and grow back by 1.5 after easy steps).
+    max_attempts: cap on load steps tried (accepted or not) in one solve.
     max_rotation_step: cap (rad) on the nodal rotation of one Newton update (spec 4.7.6).
     line_search_steps, max_step_growth: a trial state is rejected (and the step from the
       base halved, at most line_search_steps times) when its Newton step is more than
-      max_step_growth times the step that led to it — a divergence guard.
+      max_step_growth times the step that led to it — a divergence guard. A trial whose
+      residual or step is not finite is rejected the same way; after line_search_steps
+      such halvings the Newton solve fails with status NONFINITE.
     step_tolerance: converged when the next Newton step is below it (translations /
       char_length, rotations in rad).
     stagnation_level: also converged when the residual stops halving below this fraction
       of the load scale (round-off floor of stiff axial terms, ~ eps EA).
+    tangent: "closed_form" (closed-form element tangents where a term has one) or
+      "autodiff" (``jax.jacfwd`` of every term); the same tangent, different speed (static).
     """
     tolerance: float = 1e-10
     max_iterations: int = 50
@@ -46,17 +59,42 @@ class StaticSettings(NamedTuple):
     min_step_fraction: float = 2.0**-12
     max_attempts: int = 2000
     line_search_steps: int = 8
-    max_rotation_step: float = 0.5 * jnp.pi
+    max_rotation_step: float = 0.5 * np.pi
     step_tolerance: float = 1e-11
     stagnation_level: float = 1e-6
     max_step_growth: float = 4.0
+    tangent: str = "closed_form"
+
+    def __post_init__(self):
+        check_tangent(self.tangent)
+
+    def replace(self, **changes) -> "StaticSettings":
+        """A copy with some settings changed."""
+        return dataclasses.replace(self, **changes)
+
+
+_STATIC_INTEGERS = ("max_iterations", "load_steps", "max_attempts", "line_search_steps",
+                    "tangent")
+jax.tree_util.register_dataclass(
+    StaticSettings,
+    data_fields=[f.name for f in dataclasses.fields(StaticSettings)
+                 if f.name not in _STATIC_INTEGERS],
+    meta_fields=list(_STATIC_INTEGERS))
+
+
+def as_traced(settings):
+    """``settings`` with every float leaf a float64 array, so that Python floats, NumPy
+    scalars and arrays all hit the same compiled program."""
+    return jax.tree_util.tree_map(lambda x: jnp.asarray(x, jnp.float64), settings)
 
 
 class Equilibrium(NamedTuple):
     """Result of :func:`solve_static`. R (N,3,3), p (N,3): nodal frames (world); the rest
     are scalars: converged (bool), iterations (total Newton iterations), residual_norm
-    (weighted, N), load_level (fraction of the loads reached, 1 when converged),
-    load_steps (accepted continuation steps), step_failures (halvings)."""
+    (weighted, N; at the last accepted load level), load_level (fraction of the loads
+    reached, 1 when converged), load_steps (accepted continuation steps), step_failures
+    (halvings), status (:class:`~simsoft_jax.status.Status` code: how the solve ended),
+    cause (the reason of the last failed Newton solve, ``NOT_RUN`` if none)."""
     R: jax.Array
     p: jax.Array
     converged: jax.Array
@@ -65,9 +103,16 @@ class Equilibrium(NamedTuple):
     load_level: jax.Array
     load_steps: jax.Array
     step_failures: jax.Array
+    status: jax.Array
+    cause: jax.Array
+
+    def message(self) -> str:
+        """How the solve ended, in words (concrete, unbatched results)."""
+        return describe("static", self.status, self.cause, float(self.load_level),
+                        float(self.residual_norm))
 
 
-def _weighted_norm(model, r):
+def weighted_norm(model, r):
     """Unit-consistent norm: forces in N, moments divided by ``char_length`` (spec 4.7.9)."""
     return jnp.sqrt(jnp.sum(r[:, :3] ** 2) + jnp.sum((r[:, 3:] / model.char_length) ** 2))
 
@@ -93,7 +138,7 @@ def load_scale(model: Model):
         nodal = nodal + jnp.abs(model.nodal_dead)
     if s.has_nodal_follower:
         nodal = nodal + jnp.abs(model.nodal_follower)
-    total = jnp.sum(_weighted_norm(model, nodal * mask) ** 2)
+    total = jnp.sum(weighted_norm(model, nodal * mask) ** 2)
     q = jnp.zeros_like(model.distributed_world)
     if s.has_gravity:
         q = q + model.inertia[:, :1] * model.gravity
@@ -109,6 +154,29 @@ def _update(R, p, dx):
     return jax.vmap(lie.compose_exp)(R, p, dx)
 
 
+class _NewtonState(NamedTuple):
+    """Carry of :func:`_newton`: the trial frames (R, p), the accepted base frames and
+    the Newton step from the base (dx), the fraction of it tried (step), the size of that
+    step (size_base) and the residual at the base (res_base), the residual at the last
+    evaluated trial (res), rejected trials in a row (backtracks), accepted Newton steps
+    (iterations), and the status: -1 running, else a :class:`Status` code."""
+    R: jax.Array
+    p: jax.Array
+    base_R: jax.Array
+    base_p: jax.Array
+    dx: jax.Array
+    step: jax.Array
+    size_base: jax.Array
+    res: jax.Array
+    res_base: jax.Array
+    backtracks: jax.Array
+    iterations: jax.Array
+    status: jax.Array
+
+
+_RUNNING = -1
+
+
 def _newton(model: Model, settings: StaticSettings, R, p, lam, ref):
     """Newton iterations at load level ``lam`` from (R, p) (spec S71) with damping.
 
@@ -117,52 +185,60 @@ def _newton(model: Model, settings: StaticSettings, R, p, lam, ref):
     to it (a natural-level divergence guard in the spirit of Deuflhard's monotonicity
     test: it measures the distance to the solution in the unknowns, so the huge axial
     stiffness of a rod cannot make a good step look bad, as a residual-based Armijo test
-    does; a strict theta < 1 test rejects good steps of stiff rods); a rejected trial
-    halves the step from the base. Returns (R, p, Newton steps, residual norm, converged).
+    does; a strict theta < 1 test rejects good steps of stiff rods) or is not finite; a
+    rejected trial halves the step from the base. Every loop pass either accepts (counted
+    against ``max_iterations``) or backtracks (at most ``line_search_steps`` in a row), so
+    the loop always ends. Returns (R, p, Newton steps, residual norm, status code).
     """
     tol = settings.tolerance * ref
 
-    def body(c):
-        r, blocks = residual_and_tangent(model, c["R"], c["p"], lam)
-        res = _weighted_norm(model, r)
+    def body(c: _NewtonState) -> _NewtonState:
+        r, blocks = residual_and_tangent(model, c.R, c.p, lam, settings.tangent)
+        res = weighted_norm(model, r)
         dx = -block_solve(blocks, r)
         rot = jnp.max(jnp.linalg.norm(dx[:, 3:], axis=1))
         dx = dx * jnp.minimum(1.0, settings.max_rotation_step / jnp.maximum(rot, 1e-300))
         size = _step_size(model, dx)
         finite = jnp.isfinite(res) & jnp.isfinite(size)
-        accept = finite & ((size < settings.max_step_growth * c["size_base"])
-                           | (c["backtracks"] >= settings.line_search_steps))
+        exhausted = c.backtracks >= settings.line_search_steps
+        accept = finite & ((size < settings.max_step_growth * c.size_base) | exhausted)
         # converged: residual below tolerance, or stagnating at the round-off floor (a stiff
         # axial term makes |r| ~ eps EA) well below the load scale
         converged = accept & ((res <= tol) | ((res <= settings.stagnation_level * ref)
-                                              & (res >= 0.5 * c["res_base"])))
+                                              & (res >= 0.5 * c.res_base)))
         # the next Newton step is below step_tolerance: the state is that accurate, even
         # where round-off keeps the residual above tol (stiff axial terms, spec (S64))
         stalled = accept & (step_norm(model, dx) <= settings.step_tolerance)
-        base_R = jnp.where(accept, c["R"], c["base_R"])
-        base_p = jnp.where(accept, c["p"], c["base_p"])
-        dx = jnp.where(accept, dx, c["dx"])
-        step = jnp.where(accept, 1.0, 0.5 * c["step"])
+        base_R = jnp.where(accept, c.R, c.base_R)
+        base_p = jnp.where(accept, c.p, c.base_p)
+        dx = jnp.where(accept, dx, c.dx)
+        step = jnp.where(accept, 1.0, 0.5 * c.step)
         trial_R, trial_p = _update(base_R, base_p, step * dx)
-        iterations = c["iterations"] + accept
-        status = jnp.where(converged | stalled, 1, 0)
-        status = jnp.where((status == 0) & ((iterations > settings.max_iterations)
-                                            | ~jnp.all(jnp.isfinite(trial_p))), 2, status)
-        done = status != 0
-        return dict(
-            R=jnp.where(done, c["R"], trial_R), p=jnp.where(done, c["p"], trial_p),
+        iterations = c.iterations + accept
+        # a non-finite trial from a base with no finite step (the first evaluation, or
+        # after line_search_steps halvings) cannot be backtracked: the solve fails here
+        nonfinite = ~finite & (exhausted | ~jnp.isfinite(c.size_base))
+        status = jnp.where(converged | stalled, Status.CONVERGED, _RUNNING)
+        status = jnp.where(nonfinite, Status.NONFINITE, status)
+        status = jnp.where((status == _RUNNING) & (iterations > settings.max_iterations),
+                           Status.MAX_ITERATIONS, status)
+        status = jnp.where((status == _RUNNING) & ~jnp.all(jnp.isfinite(trial_p)),
+                           Status.NONFINITE, status)
+        done = status != _RUNNING
+        return _NewtonState(
+            R=jnp.where(done, c.R, trial_R), p=jnp.where(done, c.p, trial_p),
             base_R=base_R, base_p=base_p, dx=dx, step=step,
-            size_base=jnp.where(accept, size, c["size_base"]), res=res,
-            res_base=jnp.where(accept, res, c["res_base"]),
-            backtracks=jnp.where(accept, 0, c["backtracks"] + 1),
+            size_base=jnp.where(accept, size, c.size_base), res=res,
+            res_base=jnp.where(accept, res, c.res_base),
+            backtracks=jnp.where(accept, 0, c.backtracks + 1),
             iterations=iterations, status=status)
 
-    init = dict(R=R, p=p, base_R=R, base_p=p, dx=jnp.zeros(p.shape[:1] + (6,)),
-                step=jnp.array(1.0), size_base=jnp.array(jnp.inf), res=jnp.array(jnp.inf),
-                res_base=jnp.array(jnp.inf),
-                backtracks=jnp.array(0), iterations=jnp.array(0), status=jnp.array(0))
-    c = jax.lax.while_loop(lambda c: c["status"] == 0, body, init)
-    return c["R"], c["p"], c["iterations"] - 1, c["res"], c["status"] == 1
+    inf, zero = jnp.array(jnp.inf), jnp.array(0)
+    init = _NewtonState(R=R, p=p, base_R=R, base_p=p, dx=jnp.zeros(p.shape[:1] + (6,)),
+                        step=jnp.array(1.0), size_base=inf, res=inf, res_base=inf,
+                        backtracks=zero, iterations=zero, status=jnp.array(_RUNNING))
+    c = jax.lax.while_loop(lambda c: c.status == _RUNNING, body, init)
+    return c.R, c.p, jnp.maximum(c.iterations - 1, 0), c.res, c.status
 
 
 def _secant(R, p, R_prev, p_prev, ratio):
@@ -173,83 +249,118 @@ def _secant(R, p, R_prev, p_prev, ratio):
     return jax.vmap(one)(R, p, R_prev, p_prev)
 
 
+class _ContinuationState(NamedTuple):
+    """Carry of :func:`_continuation`: the last accepted frames (R, p) at load level lam,
+    the ones before (R_prev, p_prev at lam_prev) for the secant predictor, the next load
+    increment dlam, counters, the residual at the last accepted level, and the status of
+    the last failed Newton solve (cause)."""
+    R: jax.Array
+    p: jax.Array
+    R_prev: jax.Array
+    p_prev: jax.Array
+    lam: jax.Array
+    lam_prev: jax.Array
+    dlam: jax.Array
+    accepted: jax.Array
+    failures: jax.Array
+    iterations: jax.Array
+    attempts: jax.Array
+    residual: jax.Array
+    cause: jax.Array
+
+
 def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
     """Adaptive load continuation lam: 0 -> 1 with Newton at each level (spec section 5)."""
     dlam_max = 1.0 / settings.load_steps
     dlam_min = dlam_max * settings.min_step_fraction
     ref = load_scale(model)
 
-    def body(c):
-        lam_try = c["lam"] + c["dlam"]
+    def body(c: _ContinuationState) -> _ContinuationState:
+        lam_try = c.lam + c.dlam
         lam_try = jnp.where(lam_try > 1.0 - 1e-9, 1.0, lam_try)  # no sliver step from round-off
-        ratio = (lam_try - c["lam"]) / jnp.maximum(c["lam"] - c["lam_prev"], 1e-300)
-        use_secant = c["accepted"] >= 1
-        Rs, ps = _secant(c["R"], c["p"], c["R_prev"], c["p_prev"], jnp.where(use_secant, ratio, 0.0))
-        R, p, its, res, ok = _newton(model, settings, Rs, ps, lam_try, ref)
+        ratio = (lam_try - c.lam) / jnp.maximum(c.lam - c.lam_prev, 1e-300)
+        Rs, ps = _secant(c.R, c.p, c.R_prev, c.p_prev, jnp.where(c.accepted >= 1, ratio, 0.0))
+        R, p, its, res, status = _newton(model, settings, Rs, ps, lam_try, ref)
+        ok = status == Status.CONVERGED
         grow = jnp.where(its < 5, 1.5, 1.0)
-        new = dict(c)
-        new["R"] = jnp.where(ok, R, c["R"])
-        new["p"] = jnp.where(ok, p, c["p"])
-        new["R_prev"] = jnp.where(ok, c["R"], c["R_prev"])
-        new["p_prev"] = jnp.where(ok, c["p"], c["p_prev"])
-        new["lam_prev"] = jnp.where(ok, c["lam"], c["lam_prev"])
-        new["lam"] = jnp.where(ok, lam_try, c["lam"])
-        new["dlam"] = jnp.where(ok, jnp.minimum(c["dlam"] * grow, dlam_max), 0.5 * c["dlam"])
-        new["accepted"] = c["accepted"] + ok
-        new["failures"] = c["failures"] + (~ok)
-        new["iterations"] = c["iterations"] + its
-        new["residual"] = jnp.where(ok, res, c["residual"])
-        new["attempts"] = c["attempts"] + 1
-        return new
+        keep = lambda new, old: jnp.where(ok, new, old)  # noqa: E731
+        return _ContinuationState(
+            R=keep(R, c.R), p=keep(p, c.p), R_prev=keep(c.R, c.R_prev),
+            p_prev=keep(c.p, c.p_prev), lam_prev=keep(c.lam, c.lam_prev),
+            lam=keep(lam_try, c.lam),
+            dlam=jnp.where(ok, jnp.minimum(c.dlam * grow, dlam_max), 0.5 * c.dlam),
+            accepted=c.accepted + ok, failures=c.failures + (~ok),
+            iterations=c.iterations + its, attempts=c.attempts + 1,
+            residual=keep(res, c.residual), cause=keep(c.cause, status))
 
-    def running(c):
-        return ((c["lam"] < 1.0) & (c["dlam"] >= dlam_min)
-                & (c["attempts"] < settings.max_attempts))
+    def running(c: _ContinuationState):
+        return (c.lam < 1.0) & (c.dlam >= dlam_min) & (c.attempts < settings.max_attempts)
 
-    zero_i = jnp.array(0)
-    init = dict(R=model.R0, p=model.p0, R_prev=model.R0, p_prev=model.p0,
-                lam=jnp.array(0.0), lam_prev=jnp.array(0.0), dlam=jnp.array(dlam_max),
-                accepted=zero_i, failures=zero_i, iterations=zero_i, attempts=zero_i,
-                residual=jnp.array(jnp.inf))
+    zero = jnp.array(0)
+    init = _ContinuationState(
+        R=model.R0, p=model.p0, R_prev=model.R0, p_prev=model.p0, lam=jnp.array(0.0),
+        lam_prev=jnp.array(0.0), dlam=jnp.asarray(dlam_max, jnp.float64), accepted=zero,
+        failures=zero, iterations=zero, attempts=zero, residual=jnp.array(jnp.inf),
+        cause=jnp.array(int(Status.NOT_RUN)))
     c = jax.lax.while_loop(running, body, init)
-    return Equilibrium(c["R"], c["p"], c["lam"] >= 1.0, c["iterations"], c["residual"],
-                       c["lam"], c["accepted"], c["failures"])
+    converged = c.lam >= 1.0
+    status = jnp.where(converged, Status.CONVERGED,
+                       jnp.where(c.attempts >= settings.max_attempts, Status.MAX_ATTEMPTS,
+                                 Status.STEP_TOO_SMALL))
+    return Equilibrium(c.R, c.p, converged, c.iterations, c.residual, c.lam, c.accepted,
+                       c.failures, status, c.cause)
 
 
-@jax.custom_jvp
-def _implicit(model: Model, R, p):
-    """Identity on a converged equilibrium; its derivative is the IFT one (see module doc)."""
+@partial(jax.custom_jvp, nondiff_argnums=(0,))
+def _implicit(tangent: str, model: Model, converged, R, p):
+    """Identity on a converged equilibrium; its derivative is the IFT one (see module doc).
+    Where the solve did not converge the derivative is NaN: there is no equilibrium to
+    differentiate, and a finite number would be wrong."""
     return R, p
 
 
 @_implicit.defjvp
-def _implicit_jvp(primals, tangents):
-    model, R, p = primals
+def _implicit_jvp(tangent, primals, tangents):
+    model, converged, R, p = primals
     dmodel = tangents[0]
     _, dr = jax.jvp(lambda m: residual(m, R, p, 1.0), (model,), (dmodel,))
-    _, blocks = residual_and_tangent(model, R, p, 1.0)
-    dxi = implicit_solve(blocks, -dr)
+    _, blocks = residual_and_tangent(model, R, p, 1.0, tangent)
+    dxi = implicit_solve(blocks, -dr) * jnp.where(converged, 1.0, jnp.nan)
     # d/dt [R exp(t dxi)] at t = 0: (R skew(dxi_w), R dxi_u)
     dR = jnp.einsum("nij,njk->nik", R, jax.vmap(lie.skew)(dxi[:, 3:]))
     dp = jnp.einsum("nij,nj->ni", R, dxi[:, :3])
     return (R, p), (dR, dp)
 
 
-@jit(static_argnames="settings")
-def solve_static(model: Model, settings: StaticSettings = StaticSettings()) -> Equilibrium:
+@jit
+def _solve_static(model: Model, settings: StaticSettings) -> Equilibrium:
+    model = full_loads(model)
+    eq = _continuation(jax.lax.stop_gradient(model), jax.lax.stop_gradient(settings))
+    R, p = _implicit(settings.tangent, model, eq.converged, eq.R, eq.p)
+    return eq._replace(R=R, p=p)
+
+
+def solve_static(model: Model, settings: StaticSettings = StaticSettings(),
+                 throw: bool = False) -> Equilibrium:
     """Static equilibrium of ``model`` under its full loads (spec S70-S71).
 
-    Returns an :class:`Equilibrium`; when ``converged`` is False, ``load_level`` says how
-    far the continuation got and R, p hold the last converged state. Differentiable in
-    all Model arrays (implicit function theorem; valid where ``converged`` is True).
+    Returns an :class:`Equilibrium`; when ``converged`` is False, ``status``/``cause``
+    and :meth:`Equilibrium.message` say why, ``load_level`` how far the continuation got,
+    and R, p hold the last converged state. Compiled once per model structure and set of
+    integer settings (float settings are traced). Differentiable in all Model arrays
+    (implicit function theorem); the derivative of a non-converged solve is NaN.
+    ``throw=True`` raises :class:`~simsoft_jax.status.SolveError` instead of returning a
+    failed solve.
     """
-    eq = _continuation(jax.lax.stop_gradient(model), settings)
-    R, p = _implicit(model, eq.R, eq.p)
-    return eq._replace(R=R, p=p)
+    eq = _solve_static(model, as_traced(settings))
+    if throw:
+        raise_if_failed("static", eq.converged, eq.status, eq.cause, eq.load_level,
+                        eq.residual_norm)
+    return eq
 
 
 def settings_from_scene(solver) -> StaticSettings:
     """StaticSettings from a scene's ``[solver]`` table."""
     return StaticSettings(tolerance=float(solver.tolerance),
                           max_iterations=int(solver.max_iterations),
-                          load_steps=int(solver.load_steps))
+                          load_steps=int(solver.load_steps), tangent=solver.tangent)

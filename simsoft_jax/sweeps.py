@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._xla import jit
-from .dynamics import DynamicSettings, Dynamics, Trajectory, simulate
+from .dynamics import DynamicSettings, Trajectory, simulate
 from .model import Model
 from .statics import Equilibrium, StaticSettings, solve_static
 
@@ -69,12 +69,12 @@ def _map(fn, points: dict, chunk: int | None):
     return jax.lax.map(fn, points, batch_size=int(chunk))
 
 
-@jit(static_argnames=("vary", "settings", "chunk"))
+@jit(static_argnames=("vary", "chunk"))
 def _static(model, points, vary, settings, chunk):
     return _map(lambda q: solve_static(vary(model, q), settings), points, chunk)
 
 
-@jit(static_argnames=("vary", "settings"))
+@jit(static_argnames=("vary",))
 def _static_warm(model, points, vary, settings):
     def step(start, q):
         m = vary(model, q)
@@ -83,6 +83,11 @@ def _static_warm(model, points, vary, settings):
         return start, eq
     points = {name: jnp.asarray(value, jnp.float64) for name, value in points.items()}
     return jax.lax.scan(step, (model.R0, model.p0), points)[1]
+
+
+# A warm start that needs more load steps than this is too far from the previous point: a
+# solve from the reference shape with the full continuation is cheaper than halving on.
+WARM_ATTEMPTS = 3
 
 
 def static_sweep(model: Model, vary: Callable, points: dict,
@@ -96,7 +101,8 @@ def static_sweep(model: Model, vary: Callable, points: dict,
 
     ``warm_start=True`` solves the points one after the other (``lax.scan``), each from
     the equilibrium of the previous converged point with its full load at once
-    (``load_steps=1``; a failing step is still halved by the continuation): a natural
+    (``load_steps=1``; a failing step is still halved by the continuation, at most
+    ``WARM_ATTEMPTS`` load steps in all, after which the point counts as failed): a natural
     continuation along the sweep, a few Newton iterations per point when neighbouring
     points are close (order them so: :func:`grid` varies its last axis fastest). On a
     multistable problem it may follow a different branch than a solve from the
@@ -108,7 +114,8 @@ def static_sweep(model: Model, vary: Callable, points: dict,
     _batch_size(points)
     if not warm_start:
         return _static(model, points, vary, settings, chunk)
-    eq = _static_warm(model, points, vary, settings._replace(load_steps=1))
+    eq = _static_warm(model, points, vary,
+                      settings.replace(load_steps=1, max_attempts=WARM_ATTEMPTS))
     failed = np.flatnonzero(~np.asarray(eq.converged))
     if failed.size:       # too far from the previous point: solve those from the reference
         cold = _static(model, {name: np.asarray(value)[failed] for name, value in points.items()},
@@ -117,22 +124,19 @@ def static_sweep(model: Model, vary: Callable, points: dict,
     return eq
 
 
-@jit(static_argnames=("vary", "settings", "damped", "chunk"))
-def _dynamic(model, dyn, points, vary, settings, damped, chunk):
-    def one(q):
-        m, d = vary(model, dyn, q)
-        return simulate(m, d, settings, damped=damped)
-    return _map(one, points, chunk)
+@jit(static_argnames=("vary", "chunk"))
+def _dynamic(model, points, vary, settings, chunk):
+    return _map(lambda q: simulate(vary(model, q), settings), points, chunk)
 
 
-def dynamic_sweep(model: Model, dyn: Dynamics, vary: Callable, points: dict,
-                  settings: DynamicSettings, damped: bool = True, chunk: int | None = None
-                  ) -> Trajectory:
-    """Rollouts of ``vary(model, dyn, point) -> (model, dyn)`` for every point.
+def dynamic_sweep(model: Model, vary: Callable, points: dict, settings: DynamicSettings,
+                  chunk: int | None = None) -> Trajectory:
+    """Rollouts of ``vary(model, point) -> model`` for every point.
 
-    ``vary`` may change Model arrays and Dynamics arrays (initial velocities ``v0``, the
-    load channels' time-law parameters). Returns a :class:`Trajectory` with a leading
-    batch axis ``B``: ``p`` (B, T, N, 3), ``converged`` (B,), ``failed_at`` (B,).
+    ``vary`` may change any Model array (stiffness, inertia, loads and their time-law
+    parameters in ``model.channels``, initial velocities ``v0``, drive tables). Returns a
+    :class:`Trajectory` with a leading batch axis ``B``: ``p`` (B, T, N, 3), ``converged``
+    (B,), ``failed_at`` (B,).
     """
     _batch_size(points)
-    return _dynamic(model, dyn, points, vary, settings, damped, chunk)
+    return _dynamic(model, points, vary, settings, chunk)

@@ -140,18 +140,17 @@ def test_dynamic_identification_recovers_viscosity_and_stiffness():
                   "geometry": {"kind": "straight", "length": 0.2}}],
         "constraints": [{"kind": "clamp", "rod": "rod", "node": 0}]})
     model = sj.build_model(scene)
-    dyn = sj.build_dynamics(model, scene)
     settings = sj.DynamicSettings(dt=0.01, steps=40, rho_inf=0.9, save_every=2)
     true = np.array([1.5, 1.2])
     truth = sj.simulate(cal.apply_scales(model, ("viscosity", "EIy"), jnp.log(jnp.asarray(true))),
-                        dyn, settings, differentiable=True)
+                        settings, differentiable=True)
     assert bool(truth.converged)
     measured = np.asarray(truth.p[:, -1]) + 1e-4 * np.random.default_rng(1).standard_normal((21, 3))
-    fit = cal.fit_trajectory(model, dyn, settings, -1, measured, ("viscosity", "EIy"))
+    fit = cal.fit_trajectory(model, settings, -1, measured, ("viscosity", "EIy"))
     assert np.all(np.abs(fit.scale - true) < 2.5 * fit.std), (fit.scale, fit.std)
     assert np.all(np.abs(fit.scale - true) < 0.03 * true)
     with pytest.raises(ValueError, match=r"measured: expected shape \(21, 3\)"):
-        cal.fit_trajectory(model, dyn, settings, -1, measured[:-1])
+        cal.fit_trajectory(model, settings, -1, measured[:-1])
 
 
 SCENE = {"solver": {"kind": "static"},

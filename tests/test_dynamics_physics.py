@@ -26,7 +26,6 @@ Newton's increment test is on w = h Delta q, which is invariant). A rollout of `
 of ``steps`` steps of size ``dt`` then covers ``k steps dt / lam`` seconds of the
 original system with step ``dt / lam``.
 """
-import dataclasses
 
 import numpy as np
 import pytest
@@ -163,23 +162,23 @@ def generalized_alpha_sdof(rho_inf, wh, n, x0, v0):
 
 
 # ----------------------------------------------------------------------------- rollouts
-def time_scaled(model, dyn, lam, v0=None):
+def time_scaled(model, lam, v0=None):
     """The same system on the time axis t' = lam t (module docstring): inertia * lam^2,
     viscosity * lam, load-table and ramp times * lam, initial velocities / lam."""
-    ch = dyn.channels
+    ch = model.channels
     params = ch.params.at[:, :2].multiply(lam).at[:, 2].divide(lam)
-    ch = dataclasses.replace(ch, table_t=ch.table_t * lam, params=params)
-    v0 = dyn.v0 if v0 is None else jnp.asarray(v0, jnp.float64)
-    dyn = dataclasses.replace(dyn, masses=dyn.masses * lam**2, channels=ch, v0=v0 / lam)
-    return model.replace(inertia=model.inertia * lam**2, viscosity=model.viscosity * lam), dyn
+    ch = ch.replace(table_t=ch.table_t * lam, params=params)
+    v0 = model.v0 if v0 is None else jnp.asarray(v0, jnp.float64)
+    return model.replace(inertia=model.inertia * lam**2, viscosity=model.viscosity * lam,
+                         channels=ch, v0=v0 / lam)
 
 
-def rollout(model, dyn, settings, state, calls, lam=1.0, damped=False):
+def rollout(model, settings, state, calls, lam=1.0):
     """``calls`` chained rollouts; returns physical time (T,), R, p, body velocities v of
     every saved state (the start included) and the final State (scaled units)."""
     ts, Rs, ps, vs = [], [], [], []
     for k in range(calls):
-        tr = dy.simulate(model, dyn, settings, state, damped=damped)
+        tr = dy.simulate(model, settings, state)
         assert bool(tr.converged), f"Newton failed at t = {float(tr.failed_at) / lam}"
         first = 0 if k == 0 else 1
         ts.append(np.asarray(tr.time)[first:] / lam)
@@ -215,18 +214,18 @@ def free_rod(material, force, inertia="consistent"):
                    "profile": {"kind": "table", "t": [0.0, 0.05, 0.1],
                                "scale": [0.0, 1.0, 0.0]}}]})
     model = sj.build_model(scene)
-    return model, dy.build_dynamics(model, scene)
+    return model
 
 
 def test_element_mass_matrices_match_closed_forms():
-    """dyn.masses (which the energy/momentum references below rebuild independently) equal
+    """The element mass matrices (which the energy/momentum references below rebuild independently) equal
     the spec's I2 closed form and the I4 lumped blocks. For a rigid-body twist the
     consistent chain has the kinetic energy of the rigid rod exactly; the lumped one that
     plus the trapezoid-rule excess rhoA L Le^2 |w x e1|^2 / 12 of the quadratic |v(s)|^2."""
     for kind in ("consistent", "lumped"):
-        model, dyn = free_rod(ALUMINIUM, [0.0, 0.0, 0.0], kind)
+        model = free_rod(ALUMINIUM, [0.0, 0.0, 0.0], kind)
         chain = Chain(N_FREE, L_FREE, model.stiffness[0], model.inertia[0], kind)
-        np.testing.assert_allclose(np.asarray(dyn.masses),
+        np.testing.assert_allclose(np.asarray(dy.element_inertia(model).masses),
                                    np.broadcast_to(chain.Me, (N_FREE, 12, 12)),
                                    rtol=1e-12, atol=1e-12 * np.abs(chain.Me).max())
         # rigid twist V (world, at the origin) -> body velocities Ad_{H_i^-1} V
@@ -271,18 +270,17 @@ def test_free_planar_rotation_follows_stretched_steady_state(material, omega0):
     with R_y(w t) (S78); node B within 1e-4 of its displacement amplitude 2 xi(L) ~ L.
     Soft rod (c0 = 0.032 s/m): the tip stretch xi(L) - L/2 (up to 3.7e-3 L, 37x the
     trajectory tolerance, so a rigid-rotation solution would fail) matches S79 within 1 %."""
-    model, dyn = free_rod(material, [0.0, 0.0, 0.0])  # pulse of zero force: a free rod
+    model = free_rod(material, [0.0, 0.0, 0.0])  # pulse of zero force: a free rod
     R0, p0, v0, xi = stretched_steady_state(material, omega0)
-    model = model.replace(R0=jnp.asarray(R0), p0=jnp.asarray(p0))
-    dyn = dataclasses.replace(dyn, v0=jnp.asarray(v0))
+    model = model.replace(R0=jnp.asarray(R0), p0=jnp.asarray(p0), v0=jnp.asarray(v0))
     # consistent accelerations (S67) of the exact state are ~0 compared with w^2 L
-    vd_consistent = np.asarray(dy.initial_state(model, dyn, damped=False).vd)
+    vd_consistent = np.asarray(dy.initial_state(model).vd)
     assert np.abs(vd_consistent).max() < 1e-4 * omega0**2 * L_FREE
 
     zero = jnp.zeros((N_FREE + 1, 6))
     state = dy.State(jnp.asarray(R0), jnp.asarray(p0), jnp.asarray(v0), zero, zero,
                      jnp.asarray(0.0, jnp.float64))  # strongly typed t: no recompilation
-    t, R, p, v, _ = rollout(model, dyn, SETTINGS_FREE, state, calls=1)
+    t, R, p, v, _ = rollout(model, SETTINGS_FREE, state, calls=1)
     assert t[-1] == pytest.approx(1.0)
 
     c, s = np.cos(omega0 * t), np.sin(omega0 * t)
@@ -334,13 +332,13 @@ def test_momentum_of_free_rod_after_force_pulse(inertia, material):
     this strongly deforming rod; asserted >= 2.5). With the earlier frozen-field form
     (spec I2) it stayed at 1.7e-2 for every dt (an O(deformation) model error)."""
     F = np.array([1.0, 0.5, 3.0])
-    model, dyn = free_rod(material, F, inertia)
+    model = free_rod(material, F, inertia)
     chain = Chain(N_FREE, L_FREE, model.stiffness[0], model.inertia[0], inertia)
     drifts = []
     for lam in (1.0, 2.0):
-        m, d = time_scaled(model, dyn, lam)
-        state = dy.initial_state(m, d, damped=False)
-        t, R, p, v, _ = rollout(m, d, SETTINGS_FREE, state, calls=int(2 * lam), lam=lam)
+        m = time_scaled(model, lam)
+        state = dy.initial_state(m)
+        t, R, p, v, _ = rollout(m, SETTINGS_FREE, state, calls=int(2 * lam), lam=lam)
         P, Lang = chain.momentum(R, p, v)
         i_end = int(np.argmin(np.abs(t - 0.1)))
         assert t[i_end] == pytest.approx(0.1)
@@ -392,23 +390,27 @@ def settings_cant(rho_inf):
 
 @pytest.fixture(scope="module")
 def cantilever():
-    """Model, Dynamics, reference Chain and the linear modes (free dofs, nodes 1..N) of
+    """Model, reference Chain and the linear modes (free dofs, nodes 1..N) of
     the clamped rod: omega (rad/s) and body-velocity mode shapes (modes, N+1, 6)."""
     scene = sj.Scene.from_dict(CANTILEVER)
     model = sj.build_model(scene)
-    dyn = dy.build_dynamics(model, scene)
     chain = Chain(N_CANT, L_CANT, model.stiffness[0], model.inertia[0])
     w2, phi = eigh(chain.K[6:, 6:], chain.M[6:, 6:])
     shapes = np.zeros((len(w2), N_CANT + 1, 6))
     shapes[:, 1:] = phi.T.reshape(len(w2), N_CANT, 6)
-    return model, dyn, chain, np.sqrt(w2), shapes
+    return model, chain, np.sqrt(w2), shapes
+
+
+def undamped(model):
+    """The model with zero viscosity (its Kelvin-Voigt terms then vanish)."""
+    return model.replace(viscosity=jnp.zeros_like(model.viscosity))
 
 
 def large_velocity(cantilever):
     """Initial body velocities: the two lowest bending modes (tip moving along z, resp. y)
     scaled to tip speeds 2 and 1 m/s: a large whirling motion (tip excursion ~0.6 L),
     exciting torsion and stretching through the nonlinearity; no strain at t = 0."""
-    _, _, _, _, shapes = cantilever
+    _, _, _, shapes = cantilever
     tip = shapes[:, -1, :3]
     iz = int(np.argmax(np.abs(tip[:6, 2]) / np.abs(shapes[:6]).max(axis=(1, 2))))
     iy = int(np.argmax(np.abs(tip[:6, 1]) / np.abs(shapes[:6]).max(axis=(1, 2))))
@@ -427,13 +429,13 @@ def test_second_order_convergence_nonlinear_free_vibration(cantilever, rho_inf):
     velocity: configuration error at t = 1 s for dt = 0.01, 0.005, 0.0025 against
     dt = 0.01/64; observed orders >= 1.9 (measured 2.22, 2.00 for rho_inf = 0.8 and
     2.23, 1.98 for 1.0)."""
-    model, dyn, _, _, _ = cantilever
+    model, _, _, _ = cantilever
     v0 = large_velocity(cantilever)
     finals = {}
     for lam in (4, 8, 16, 256):
-        m, d = time_scaled(model, dyn, lam, v0)
-        state = dy.initial_state(m, d, damped=False)
-        t, R, p, _, _ = rollout(m, d, settings_cant(rho_inf), state,
+        m = time_scaled(undamped(model), lam, v0)
+        state = dy.initial_state(m)
+        t, R, p, _, _ = rollout(m, settings_cant(rho_inf), state,
                                 calls=int(round(lam / (DT_CANT * STEPS_CANT))), lam=lam)
         assert t[-1] == pytest.approx(1.0)
         finals[lam] = (R[-1], p[-1])
@@ -449,12 +451,12 @@ def test_energy_conserved_rho_inf_one(cantilever):
     """rho_inf = 1, no damping, the large whirling vibration of the cantilever (4 elements)
     for 10^4 steps of 0.01 s (100 s, ~45 periods of the first mode, tip excursion 0.71 L):
     total energy within 1e-3 of its initial value at every step (measured 9.8e-5)."""
-    model, dyn, chain, _, _ = cantilever
+    model, chain, _, _ = cantilever
     v0 = large_velocity(cantilever)
     lam = 4  # dt = 0.04 / 4 = 0.01 s
-    m, d = time_scaled(model, dyn, lam, v0)
-    state = dy.initial_state(m, d, damped=False)
-    _, R, p, v, _ = rollout(m, d, settings_cant(1.0), state, calls=400, lam=lam)
+    m = time_scaled(undamped(model), lam, v0)
+    state = dy.initial_state(m)
+    _, R, p, v, _ = rollout(m, settings_cant(1.0), state, calls=400, lam=lam)
     assert len(R) == 10**4 + 1
     energy = chain.energy(R, p, v)
     assert np.abs(energy / energy[0] - 1.0).max() < 1e-3
@@ -473,15 +475,15 @@ def test_numerical_dissipation_matches_linear_generalized_alpha(cantilever, mode
     predicts, *not* monotone step by step (generalized-alpha dissipates a modified energy,
     not the physical one; step increases up to 1.9e-3 E0 here), so
     step-wise monotonicity is only asserted where the scheme actually provides it."""
-    model, dyn, chain, omega, shapes = cantilever
+    model, chain, omega, shapes = cantilever
     k = 0 if mode == "lowest" else len(omega) - 1
     lam = 1.0 if wh is None else DT_CANT * omega[k] / wh
     wh = omega[k] * DT_CANT / lam
     v0 = 1e-5 * shapes[k] / np.abs(shapes[k]).max()
-    m, d = time_scaled(model, dyn, lam, v0)
-    state = dy.initial_state(m, d, damped=False)
+    m = time_scaled(undamped(model), lam, v0)
+    state = dy.initial_state(m)
     calls = 1 if mode == "highest" else 4
-    _, R, p, v, _ = rollout(m, d, settings_cant(0.8), state, calls=calls, lam=lam)
+    _, R, p, v, _ = rollout(m, settings_cant(0.8), state, calls=calls, lam=lam)
     energy = chain.energy(R, p, v)
     reference = generalized_alpha_sdof(0.8, wh, calls * STEPS_CANT, 0.0, 1.0)
     np.testing.assert_allclose(energy / energy[0], reference / reference[0], rtol=0, atol=1e-9)
@@ -506,11 +508,11 @@ def test_viscous_energy_decays_monotonically_and_balances_dissipation(cantilever
     matches the viscous work sum_k h sum_e L epsdot^T Upsilon epsdot with strain rates from
     the saved strains (epsdot = (eps_k+1 - eps_k)/h; exact for a linear system with
     rho_inf = 1) within 2e-3 (measured 2.4e-4)."""
-    model, dyn, chain, _, _ = cantilever
+    model, chain, _, _ = cantilever
     v0 = large_velocity(cantilever)
-    d = dataclasses.replace(dyn, v0=jnp.asarray(v0))
-    state = dy.initial_state(model, d, damped=True)
-    t, R, p, v, _ = rollout(model, d, SETTINGS_VISC, state, calls=2, damped=True)
+    model = model.replace(v0=jnp.asarray(v0))
+    state = dy.initial_state(model)
+    t, R, p, v, _ = rollout(model, SETTINGS_VISC, state, calls=2)
     energy = chain.energy(R, p, v)
     steps = np.diff(energy)
     assert np.all(steps < -1e-9 * energy[0])
@@ -529,22 +531,22 @@ def test_gradient_through_rollout_matches_finite_differences(cantilever):
     scale b on the viscosity: reverse-mode IFT-through-rollout Jacobian (3x2) agrees with
     central differences (step 1e-4, O(1e-8) truncation) to 1e-5 relative per column
     (measured 8e-9 and 2e-9)."""
-    model, dyn, _, _, _ = cantilever
-    d = dataclasses.replace(dyn, v0=jnp.asarray(large_velocity(cantilever)))
+    model, _, _, _ = cantilever
+    model = model.replace(v0=jnp.asarray(large_velocity(cantilever)))
 
     def scaled(ab):
         return model.replace(stiffness=model.stiffness.at[:, 4:6].multiply(ab[0]),
                              viscosity=model.viscosity * ab[1])
 
     def tip(ab):
-        traj = dy.simulate(scaled(ab), d, SETTINGS_VISC, damped=True, differentiable=True)
+        traj = dy.simulate(scaled(ab), SETTINGS_VISC, differentiable=True)
         return traj.p[-1, -1]
 
     x0 = jnp.array([1.0, 1.0])
     jac = np.asarray(jax.jacrev(tip)(x0))
 
     def tip_fd(ab):  # plain rollout (no sub-stepping happens: every step converges)
-        traj = dy.simulate(scaled(jnp.asarray(ab)), d, SETTINGS_VISC, damped=True)
+        traj = dy.simulate(scaled(jnp.asarray(ab)), SETTINGS_VISC)
         assert bool(traj.converged)
         return np.asarray(traj.p[-1, -1])
 

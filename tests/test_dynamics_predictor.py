@@ -1,4 +1,4 @@
-"""The Newton predictor of the generalized-alpha step (newton_memory.predicted_increment):
+"""The Newton predictor of the generalized-alpha step (dynamics.memory.predicted_increment):
 it must return the increment of spec S66 for the acceleration guess it selects, and
 select the guess that would have predicted the last accelerations best. The references
 are the scheme's formulas written out here (S52, S53, S66)."""
@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import simsoft_jax  # noqa: F401  (enables float64)
-from simsoft_jax import newton_memory as nm
+from simsoft_jax.dynamics import memory as nm
 
 RHO = 0.8
 ALPHA_M = (2 * RHO - 1) / (RHO + 1)

@@ -1,7 +1,6 @@
 """Batched sweeps (simsoft_jax.sweeps): grid order, vmapped and warm-started static sweeps
 against single solves and the linear cantilever, a dynamic sweep against single rollouts,
 and input errors."""
-import dataclasses
 
 import jax.numpy as jnp
 import numpy as np
@@ -64,10 +63,10 @@ def test_static_sweep_rejects_bad_points(model):
         sweeps.static_sweep(model, vary_force_and_stiffness, {"force": [1.0, 2.0], "stiff": [1.0]})
 
 
-def vary_load_scale(model, dyn, q):
+def vary_load_scale(model, q):
     """Scale the amplitude of every nodal dead-load channel (the time laws stay)."""
-    channels = dataclasses.replace(dyn.channels, nodal_dead=dyn.channels.nodal_dead * q["scale"])
-    return model, dataclasses.replace(dyn, channels=channels)
+    channels = model.channels.replace(nodal_dead=model.channels.nodal_dead * q["scale"])
+    return model.replace(channels=channels)
 
 
 def test_dynamic_sweep_matches_single_rollouts():
@@ -75,15 +74,13 @@ def test_dynamic_sweep_matches_single_rollouts():
     scene["rods"][0]["elements"] = 3
     scene = sj.Scene.from_dict(scene)
     model = sj.build_model(scene)
-    dyn = sj.build_dynamics(model, scene)
     settings = sj.DynamicSettings(dt=0.01, steps=20, save_every=10)
     points = {"scale": np.array([0.5, 1.0])}
-    batch = sweeps.dynamic_sweep(model, dyn, vary_load_scale, points, settings, damped=False)
+    batch = sweeps.dynamic_sweep(model, vary_load_scale, points, settings)
     assert batch.p.shape == (2, 3, 4, 3) and batch.converged.all()
     # early in the ramp the response is linear: twice the load, twice the tip displacement
     moved = np.asarray(batch.p[:, -1, -1, 1:] - batch.p[:, 0, -1, 1:])
     np.testing.assert_allclose(moved[1], 2.0 * moved[0], rtol=0.05)
     for k, scale in enumerate(points["scale"]):
-        m, d = vary_load_scale(model, dyn, {"scale": jnp.asarray(scale)})
-        single = sj.simulate(m, d, settings, damped=False)
+        single = sj.simulate(vary_load_scale(model, {"scale": jnp.asarray(scale)}), settings)
         np.testing.assert_allclose(batch.p[k], single.p, atol=1e-10)

@@ -12,7 +12,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .assembly import factorize
+from ..assembly import factorize
 
 
 class NewtonMemory(NamedTuple):

@@ -1,0 +1,77 @@
+"""Host driver of long rollouts: one compiled chunk of steps, called repeatedly from
+Python, with progress reports between chunks and a stop at the first failure."""
+from __future__ import annotations
+
+import time
+
+import jax
+import jax.numpy as jnp
+
+from ..model import Model
+from ..statics import as_traced
+from .rollout import Trajectory, _check_viscosity, _simulate, initial_state
+from .scheme import DynamicSettings
+
+_initial_state = jax.jit(initial_state)
+
+
+def _chunk_saves(total_saves: int, save_every: int, target_steps: int = 200) -> int:
+    """Largest divisor of ``total_saves`` whose chunk has at most ~target_steps steps."""
+    limit = max(1, target_steps // save_every)
+    return max(k for k in range(1, min(total_saves, limit) + 1) if total_saves % k == 0)
+
+
+def compile_key(model: Model, settings: DynamicSettings):
+    """What a compiled rollout depends on: the model's structure and array shapes and the
+    integer settings (float settings and array values are traced)."""
+    leaves, treedef = jax.tree_util.tree_flatten(model)
+    return (treedef, tuple(x.shape for x in leaves), jax.tree_util.tree_structure(settings))
+
+
+def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
+            save_every: int = 1, progress=None, compiled=None,
+            tolerance: float = 1e-10, max_iterations: int = 25, tangent: str = "closed_form"):
+    """Run from the initial state to ``t_end`` in compiled chunks of the same length.
+
+    Any ``t_end``, ``dt``, ``rho_inf`` or ``tolerance`` reuses one compiled chunk for the
+    same structure and chunk length; ``progress(t, t_end)`` is called after every chunk;
+    the run stops at the first failed step and the returned trajectory ends there.
+    ``compiled`` may be a dict used as a cache of compiled chunks.
+    Returns ``(Trajectory, compile_seconds)`` with all saved states concatenated.
+    """
+    _check_viscosity(model)
+    steps = max(1, int(round(t_end / dt)))
+    save_every = min(save_every, steps)
+    total_saves = steps // save_every
+    per_chunk = _chunk_saves(total_saves, save_every)
+    settings = as_traced(DynamicSettings(
+        dt=float(dt), steps=per_chunk * save_every, rho_inf=float(rho_inf),
+        save_every=save_every, tolerance=float(tolerance), max_iterations=int(max_iterations),
+        tangent=tangent))
+    compiled = {} if compiled is None else compiled
+    key = compile_key(model, settings)
+    start = time.perf_counter()
+    state = jax.block_until_ready(_initial_state(model))
+    if key not in compiled:
+        compiled[key] = _simulate.lower(model, settings, state).compile()
+    compile_seconds = time.perf_counter() - start
+    chunks = []
+    for _ in range(total_saves // per_chunk):
+        traj = compiled[key](model, settings, state)
+        chunks.append(traj if not chunks else traj._replace(
+            time=traj.time[1:], R=traj.R[1:], p=traj.p[1:], v=traj.v[1:]))
+        state = traj.final
+        if progress is not None:
+            progress(float(state.t), t_end)
+        if not bool(traj.converged):
+            break
+    cat = lambda name: jnp.concatenate([getattr(c, name) for c in chunks])  # noqa: E731
+    last = chunks[-1]
+    traj = Trajectory(cat("time"), cat("R"), cat("p"), cat("v"), last.converged,
+                      last.failed_at, cat("iterations"), cat("substeps"), state, last.status,
+                      last.cause, last.residual)
+    if not bool(last.converged):  # saved states after the failure repeat the last good one
+        keep = int(jnp.searchsorted(traj.time, last.failed_at, side="left")) + 1
+        traj = traj._replace(time=traj.time[:keep], R=traj.R[:keep], p=traj.p[:keep],
+                             v=traj.v[:keep])
+    return traj, compile_seconds

@@ -1,0 +1,173 @@
+"""The dynamic residual of one generalized-alpha step and its iteration matrix (spec S47,
+S61, S66), from vmapped element kernels.
+
+``F(w) = r(q(w), v(w), vdot(w), t_{n+1})``, the sum of the residual terms of
+:mod:`simsoft_jax.terms`, with the exact iteration matrix
+``M beta' + C_t gamma' + K_t T_SE3(w)`` built from element blocks, assembled into a
+block-tridiagonal matrix. Element blocks by the ``tangent`` path: "closed_form"
+(closed-form stress and dead-load tangents, ``jacfwd`` of the gyroscopic and
+follower-load terms) or "autodiff" (``jax.jacfwd`` of the sum of the element terms in
+the frame perturbations, velocities and accelerations). Element inertia (field maps and mass matrices) is computed from
+the Model's sectional inertia inside the trace (:func:`element_inertia`), so a changed
+``model.inertia`` changes everything it should, gradients included.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from .. import element, inertia, lie
+from ..assembly import (_nodal_load, apply_constraints, assemble_blocks, assemble_vector,
+                        dead_distributed_force, element_data, element_force_and_tangent,
+                        element_poses, follower_distributed_load, nodal_load_and_tangent)
+from ..drives import reduce, slide_maps
+from ..loads import loads_at
+from ..model import Model
+from ..terms import autodiff as term_tangents
+from ..terms import element_state
+from .scheme import State, fields, iteration_factors
+
+
+class ElementInertia(NamedTuple):
+    """maps (E,G,6,12): velocity-field maps at the quadrature points; masses (E,12,12):
+    element mass matrices (see :mod:`simsoft_jax.inertia`)."""
+    maps: jax.Array
+    masses: jax.Array
+
+
+def element_inertia(model: Model) -> ElementInertia:
+    """Field maps and mass matrices of all elements from ``model.inertia`` (traced)."""
+    return ElementInertia(*inertia.element_inertia(model.d0, model.length, model.inertia,
+                                                   model.structure.inertia_kind))
+
+
+def _element_args(model: Model, inert: ElementInertia, R, p, v, vd):
+    a = jnp.asarray(model.structure.element_nodes)
+    d = jax.vmap(element.relative_twist)(R[a], p[a], R[a + 1], p[a + 1])
+    ve = jnp.concatenate([v[a], v[a + 1]], axis=1)
+    vde = jnp.concatenate([vd[a], vd[a + 1]], axis=1)
+    return (R[a], d, ve, vde, inert.maps, inert.masses, model.d0, model.length,
+            model.stiffness, model.inertia, model.viscosity, model.distributed_world,
+            model.distributed_local)
+
+
+def _element_velocities(model: Model, v, vd):
+    a = jnp.asarray(model.structure.element_nodes)
+    return (jnp.concatenate([v[a], v[a + 1]], axis=1),
+            jnp.concatenate([vd[a], vd[a + 1]], axis=1))
+
+
+def dynamic_residual(model: Model, inert: ElementInertia, R, p, v, vd, masked=True):
+    """Global dynamic residual (N,6) (spec S47), held dofs zeroed (unless ``masked=False``).
+    ``model`` holds the loads at the time of evaluation (:func:`loads.loads_at`)."""
+    s = model.structure
+    residual = term_tangents.element_residual(s, 1.0, dynamic=True)
+    f = jax.vmap(lambda RA, pA, RB, pB, ve, vde, data: residual(
+        element_state(RA, pA, RB, pB, ve, vde), data))(
+        *element_poses(model, R, p), *_element_velocities(model, v, vd),
+        element_data(model, inert.maps, inert.masses))
+    r = assemble_vector(s.n_nodes, s.element_nodes, f)
+    if s.has_nodal_dead or s.has_nodal_follower:
+        r = r + jax.vmap(_nodal_load(model, 1.0))(R, model.nodal_dead, model.nodal_follower)
+    return r * s.free_mask() if masked else r
+
+
+def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p, slide=None,
+                                  tangent: str = "closed_form"):
+    """Residual (N,6) and block-tridiagonal ``M beta' + C_t gamma' + K_t T(w)`` (S61, S66).
+    ``slide = (C, B, mask)`` (see :func:`drives.slide_maps`) reduces sliding drive nodes to their
+    slide unknown before the held dofs are eliminated. ``tangent``: the element-block path
+    (module docstring)."""
+    s = model.structure
+    n = s.n_nodes
+    a = jnp.asarray(s.element_nodes)
+    dead, follower = dead_distributed_force(model, 1.0), follower_distributed_load(model, 1.0)
+    T = jax.vmap(lie.tangent_se3)(w)
+
+    def value_and_blocks(RA, d, ve, vde, maps, mass, d0, length, stiffness, inert, visc, qw, ql):
+        # K_t: closed-form stress and load tangents (spec S42, S44), in the chart of S37;
+        # C_t: gyroscopic (jacfwd in the 12 velocities) and viscous P^T Ups P / L (S42)
+        P = element.strain_map(d)
+        stress, stress_jac = stiffness * (d - d0) / length, jnp.diag(stiffness / length)
+        gyro = lambda u: inertia.gyroscopic_force(  # noqa: E731
+            maps, length, inert, u, s.inertia_kind, mass)
+        C, g = jax.jacfwd(lambda u: (gyro(u),) * 2, has_aux=True)(ve)
+        if s.has_viscosity:
+            rate = lambda dd: element.strain_map(dd) @ ve / length  # noqa: E731
+            stress = stress + visc * rate(d)
+            stress_jac = stress_jac + visc[:, None] * jax.jacfwd(rate)(d)
+            C = C + P.T @ (visc[:, None] * P) / length
+        f, K = element_force_and_tangent(P, d, stress, stress_jac, RA, length, dead, follower,
+                                         inert[0], qw, ql)
+        return f + mass @ vde + g, K, C, mass
+
+    if tangent == "autodiff":
+        f_el, K_el, C_el, M_el = jax.vmap(term_tangents.element_tangents(s, 1.0, dynamic=True))(
+            *element_poses(model, R, p), *_element_velocities(model, v, vd),
+            element_data(model, inert.maps, inert.masses))
+    else:
+        f_el, K_el, C_el, M_el = jax.vmap(value_and_blocks)(
+            *_element_args(model, inert, R, p, v, vd))
+    TA, TB = T[a], T[a + 1]
+    K_el = jnp.concatenate([K_el[:, :, :6] @ TA, K_el[:, :, 6:] @ TB], axis=2)
+    S_el = M_el * beta_p + C_el * gamma_p + K_el
+    r = assemble_vector(n, s.element_nodes, f_el)
+    diag, upper, lower = assemble_blocks(n, s.element_nodes, S_el)
+    if s.has_nodal_dead or s.has_nodal_follower:
+        f_n, k_n = nodal_load_and_tangent(model, 1.0, R, tangent)
+        r = r + f_n
+        diag = diag + k_n @ T
+    if slide is not None:
+        C, B, mask = slide
+        r, blocks = reduce(C, B, r, (diag, upper, lower))
+        return apply_constraints(mask, r, blocks)
+    return apply_constraints(s.free_mask(), r, (diag, upper, lower))
+
+
+class StepFunctions(NamedTuple):
+    """``F(w)`` pieces of one step of size h from a state (see :func:`step_functions`):
+    new_state(w) -> State; residual(w) (N,6), held dofs zeroed; newton_residual(w): the
+    residual of residual_and_matrix (sliding drives reduced), without the matrix;
+    residual_and_matrix(w) -> (residual, blocks); t1: the time at the end of the step."""
+    new_state: object
+    residual: object
+    newton_residual: object
+    residual_and_matrix: object
+    t1: jax.Array
+
+
+def step_functions(model, inert, rho_inf, state: State, h,
+                   tangent: str = "closed_form") -> StepFunctions:
+    """F(w) pieces for one step of size h from ``state`` (spec S66); ``tangent`` picks the
+    iteration matrix's element-block path."""
+    beta_p, gamma_p = iteration_factors(rho_inf, h)
+    t1 = state.t + h
+    loaded = loads_at(model, t1)
+    sliding = bool(model.structure.slide_drives)
+
+    def new_state(w):
+        a1, v1, vd1 = fields(rho_inf, state, w, h)
+        R1, p1 = jax.vmap(lie.compose_exp)(state.R, state.p, w)
+        return State(R1, p1, v1, vd1, a1, t1)
+
+    def residual(w):
+        s1 = new_state(w)
+        return dynamic_residual(loaded, inert, s1.R, s1.p, s1.v, s1.vd)
+
+    def newton_residual(w):
+        if not sliding:
+            return residual(w)
+        s1 = new_state(w)
+        C, _, mask = slide_maps(model, state.R, w)
+        r = dynamic_residual(loaded, inert, s1.R, s1.p, s1.v, s1.vd, masked=False)
+        return jnp.einsum("nij,nj->ni", C, r) * mask
+
+    def residual_and_matrix(w):
+        s1 = new_state(w)
+        slide = slide_maps(model, state.R, w) if sliding else None
+        return residual_and_iteration_matrix(loaded, inert, s1.R, s1.p, s1.v, s1.vd, w,
+                                             beta_p, gamma_p, slide, tangent)
+
+    return StepFunctions(new_state, residual, newton_residual, residual_and_matrix, t1)

@@ -1,0 +1,180 @@
+"""Rollouts: the start state (spec S67-S68), ``simulate`` (one compiled ``lax.scan`` over
+the steps) and the energy of a state.
+
+``simulate(model, settings, state=None)`` reads everything from the one Model: inertia
+(element mass matrices computed inside the trace), loads and their time laws, drive
+tables, initial velocities. Gradients go through each step's Newton solve by the implicit
+function theorem (``differentiable=True``).
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import element
+from .._xla import jit
+from ..assembly import apply_constraints, assemble_blocks, block_solve
+from ..drives import reduce, slide_maps
+from ..loads import loads_at
+from ..model import Model
+from ..statics import as_traced
+from ..status import Status, describe, poison_gradient, raise_if_failed
+from .memory import empty_newton_memory
+from .newton import advance, attempt
+from .residual import dynamic_residual, element_inertia
+from .scheme import DynamicSettings, State
+
+
+class Trajectory(NamedTuple):
+    """Saved states (every save_every steps, the initial one first): time (T,), R (T,N,3,3),
+    p (T,N,3), v (T,N,6). converged: every step converged; failed_at: time (s) at the start
+    of the first failed step (nan if none); iterations (steps,): Newton iterations per step
+    (all sub-steps); substeps (steps,); final: the last State; status: how the run ended
+    (:class:`~simsoft_jax.status.Status` code); cause: why the failing Newton solve failed;
+    residual: weighted residual norm (N) of the last Newton iterate of the failed step
+    (nan if none). After a failure the state is frozen: the saved states after
+    ``failed_at`` repeat the last good state (the host driver :func:`rollout` cuts them)."""
+    time: jax.Array
+    R: jax.Array
+    p: jax.Array
+    v: jax.Array
+    converged: jax.Array
+    failed_at: jax.Array
+    iterations: jax.Array
+    substeps: jax.Array
+    final: State
+    status: jax.Array
+    cause: jax.Array
+    residual: jax.Array
+
+    def message(self) -> str:
+        """How the run ended, in words (concrete, unbatched results)."""
+        where = float(self.failed_at) if not bool(self.converged) else float(self.time[-1])
+        residual = float(self.residual) if not bool(self.converged) else 0.0
+        return describe("dynamic", self.status, self.cause, where, residual)
+
+
+def initial_state(model: Model, t0=0.0) -> State:
+    """Start state: model.R0/p0, velocities model.v0 and consistent accelerations from
+    ``M vdot_0 = -g(q_0, v_0, t_0)`` (spec S67); ``a_0 = vdot_0`` (S68)."""
+    t0 = jnp.asarray(t0, jnp.float64)
+    inert = element_inertia(model)
+    zeros = jnp.zeros_like(model.v0)
+    g = dynamic_residual(loads_at(model, t0), inert, model.R0, model.p0, model.v0, zeros,
+                         masked=False)
+    s = model.structure
+    blocks = assemble_blocks(s.n_nodes, s.element_nodes, inert.masses)
+    if s.slide_drives:  # a sliding node accelerates along its direction (w = 0: B = C^T)
+        C, B, mask = slide_maps(model, model.R0, zeros)
+        g, blocks = apply_constraints(mask, *reduce(C, B, g, blocks))
+        vd0 = jnp.einsum("nij,nj->ni", B, -block_solve(blocks, g))
+    else:
+        g, blocks = apply_constraints(s.free_mask(), g, blocks)
+        vd0 = -block_solve(blocks, g)
+    return State(model.R0, model.p0, model.v0, vd0, vd0, t0)
+
+
+def _check_viscosity(model: Model):
+    """A structure built without Kelvin-Voigt terms cannot be given viscosities later."""
+    if model.structure.has_viscosity or isinstance(model.viscosity, jax.core.Tracer):
+        return
+    if np.any(np.asarray(model.viscosity) != 0.0):
+        raise ValueError("viscosity: this model was built without viscous terms (all "
+                         "viscosities zero), so non-zero viscosities would be ignored; "
+                         "build it from a scene whose material has a viscosity")
+
+
+def simulate(model: Model, settings: DynamicSettings, state: State | None = None,
+             differentiable: bool = False, throw: bool = False) -> Trajectory:
+    """Roll out ``settings.steps`` steps of size ``settings.dt`` (``lax.scan``).
+
+    Compiled once per model structure and set of integer settings: ``dt``, ``rho_inf`` and
+    ``tolerance`` are traced, so a study over them does not recompile.
+    ``differentiable=True`` makes every step a single Newton solve differentiated by the
+    implicit function theorem (checkpointed scan: memory O(saved states)); a step that
+    fails is then reported (no sub-stepping), and derivatives of a failed rollout are NaN.
+    Otherwise failed steps are retried with halved sub-steps. After the first failure the
+    state is frozen and ``converged`` is False, ``failed_at`` the time of the failing step,
+    ``status``/``cause``/:meth:`Trajectory.message` say why. ``throw=True`` raises
+    :class:`~simsoft_jax.status.SolveError` instead. ``state`` defaults to
+    :func:`initial_state`; it is cast to float64 first, so weakly typed inputs do not
+    trigger a recompilation.
+    """
+    _check_viscosity(model)
+    if state is not None:
+        state = State(*(jnp.asarray(x, jnp.float64) for x in state))
+    traj = _simulate(model, as_traced(settings), state, differentiable=differentiable)
+    if throw:
+        raise_if_failed("dynamic", traj.converged, traj.status, traj.cause, traj.failed_at,
+                        traj.residual)
+    return traj
+
+
+class _StepCarry(NamedTuple):
+    state: State
+    failed: jax.Array
+    failed_at: jax.Array
+    status: jax.Array
+    cause: jax.Array
+    residual: jax.Array
+    memory: object
+
+
+@jit(static_argnames=("differentiable",))
+def _simulate(model: Model, settings: DynamicSettings, state: State | None,
+              differentiable: bool = False) -> Trajectory:
+    if differentiable and model.structure.slide_drives:
+        raise ValueError("constraints: differentiable=True does not support drives with "
+                         "slides_along yet (the implicit-function derivative would be wrong)")
+    state = initial_state(model) if state is None else state
+    inert = element_inertia(model)
+
+    def step(c: _StepCarry, _):
+        if differentiable:
+            att = attempt(model, inert, settings, c.state, settings.dt, True, c.memory)
+            new, its, subs, memory = att.state, att.iterations, jnp.array(1), att.memory
+            status, cause, residual = att.status, att.status, att.residual
+        else:
+            adv = advance(model, inert, settings, c.state, c.memory)
+            new, its, subs, memory = adv.state, adv.iterations, adv.substeps, adv.memory
+            status, cause, residual = adv.status, adv.cause, adv.residual
+        ok = (status == Status.CONVERGED) & ~c.failed
+        new = jax.tree_util.tree_map(lambda x, y: jnp.where(ok, x, y), new, c.state)
+        first = ~c.failed & ~ok
+        keep = lambda now, before: jnp.where(first, now, before)  # noqa: E731
+        return _StepCarry(new, c.failed | ~ok, keep(c.state.t, c.failed_at),
+                          keep(status, c.status), keep(cause, c.cause),
+                          keep(residual, c.residual), memory), (its, subs)
+
+    def save_block(c, _):
+        c, (its, subs) = jax.lax.scan(jax.checkpoint(step) if differentiable else step, c,
+                                      None, length=settings.save_every)
+        st = c.state
+        return c, (st.t, st.R, st.p, st.v, its, subs)
+
+    n_saves = settings.steps // settings.save_every
+    carry0 = _StepCarry(state, jnp.array(False), jnp.array(jnp.nan),
+                        jnp.array(int(Status.CONVERGED)), jnp.array(int(Status.NOT_RUN)),
+                        jnp.array(jnp.nan), empty_newton_memory(model.structure.n_nodes))
+    final, (t, R, p, v, its, subs) = jax.lax.scan(save_block, carry0, None, length=n_saves)
+    cat = lambda first, rest: jnp.concatenate([first[None], rest])  # noqa: E731
+    converged = ~final.failed
+    R, p, v = (poison_gradient(converged, x) for x in
+               (cat(state.R, R), cat(state.p, p), cat(state.v, v)))
+    return Trajectory(cat(state.t, t), R, p, v, converged, final.failed_at,
+                      its.reshape(-1), subs.reshape(-1), final.state, final.status,
+                      final.cause, final.residual)
+
+
+def energy(model: Model, R, p, v):
+    """Kinetic ``1/2 sum v_e^T M_e v_e`` plus strain energy ``sum (L/2) eps^T K eps`` (J)."""
+    a = jnp.asarray(model.structure.element_nodes)
+    ve = jnp.concatenate([v[a], v[a + 1]], axis=1)
+    kinetic = 0.5 * jnp.einsum("ei,eij,ej->", ve, element_inertia(model).masses, ve)
+    d = jax.vmap(element.relative_twist)(R[a], p[a], R[a + 1], p[a + 1])
+    eps = (d - model.d0) / model.length[:, None]
+    strain = 0.5 * jnp.sum(model.length[:, None] * model.stiffness * eps * eps)
+    return kinetic + strain

@@ -1,0 +1,23 @@
+"""Distributed loads on an element, consistent with the helical interpolation (spec S44):
+dead loads (world-fixed: gravity ``rhoA g`` and world-frame distributed forces) and
+follower loads (turning with the section)."""
+import jax.numpy as jnp
+
+from .. import element
+
+
+def dead_force(el, data, lam, with_gravity: bool, with_world: bool):
+    """Nodal forces (12,) of ``-lam (q_world + rhoA g)`` per unit length (N/m), on the
+    residual side, integrated along the deformed element (:func:`element.dead_load_terms`)."""
+    q = jnp.zeros(3, el.d.dtype)
+    if with_world:
+        q = q + data.q_world
+    if with_gravity:
+        q = q + data.inertia[0] * data.gravity
+    stress, _, direct, _ = element.dead_load_terms(el.RA, el.d, el.P, data.length, -lam * q)
+    return el.P.T @ stress + direct
+
+
+def follower_force(el, data, lam):
+    """Nodal forces (12,) of ``-lam q_local`` per unit length (N/m, section frame)."""
+    return -lam * element.follower_distributed_force(el.d, el.P, data.length, data.q_local)
