@@ -76,20 +76,38 @@ def scene_with(name: str, elements: int | None = None, dt: float | None = None,
     return sj.Scene.from_dict(d)
 
 
-def dynamic_setup(scene: sj.Scene, steps: int | None = None, differentiable=False):
-    """Model, Dynamics, DynamicSettings and the damped flag of a dynamic scene."""
+def dynamic_setup(scene: sj.Scene, steps: int | None = None):
+    """Model and DynamicSettings of a dynamic scene (float settings as float64 arrays, so
+    a compiled rollout can be called with them)."""
     model = sj.build_model(scene)
-    dyn = sj.build_dynamics(model, scene)
     s = scene.solver
     steps = int(round(s.t_end / s.dt)) if steps is None else steps
     settings = sj.DynamicSettings(dt=s.dt, steps=steps, rho_inf=s.rho_inf,
                                   tolerance=s.tolerance, max_iterations=s.max_iterations)
-    damped = bool(np.any(np.asarray(model.viscosity) != 0))
-    return model, dyn, settings, damped
+    return model, sj.statics.as_traced(settings)
 
 
 def static_setup(scene: sj.Scene):
-    return sj.build_model(scene), sj.statics.settings_from_scene(scene.solver)
+    """Model and StaticSettings of a static scene (float settings as float64 arrays)."""
+    return (sj.build_model(scene),
+            sj.statics.as_traced(sj.statics.settings_from_scene(scene.solver)))
+
+
+def compile_static(model, settings):
+    """(lowered, compiled) static solver for this model structure: the compiled program
+    is called as ``compiled(model, settings)``."""
+    lowered = sj.statics._solve_static.lower(model, settings)
+    return lowered, lowered.compile()
+
+
+def compile_dynamic(model, settings, state):
+    """(lowered, compiled) rollout of ``settings.steps`` steps from ``state`` (e.g.
+    ``sj.initial_state(model)``, computed outside the timed program) for this model
+    structure, called as ``compiled(model, settings, state)``."""
+    from simsoft_jax.dynamics.rollout import _simulate
+
+    lowered = _simulate.lower(model, settings, state)
+    return lowered, lowered.compile()
 
 
 def count_hlo_ops(lowered) -> int:

@@ -12,6 +12,7 @@ shared machine). Not a test.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import subprocess
@@ -64,26 +65,30 @@ def _princeton(gravity):
 
 def needs(quick: bool):
     """HLO size and run time of a scene with and without an optional term traced. The
-    pairs "zero gravity traced / not traced" and "zero viscosity traced (damped=True) /
-    not traced" have the same physics, so they isolate the cost of tracing the term."""
+    pairs "zero gravity traced / not traced" and "zero viscosity traced
+    (``structure.has_viscosity=True``) / not traced" have the same physics, so they
+    isolate the cost of tracing the term."""
     rows = []
     repeats = 3 if quick else 5
     for label, gravity in (("gravity -9.81", (0.0, 0.0, -9.81)), ("gravity 0", (0.0, 0.0, 0.0)),
                            ("no gravity", None)):
         model, settings = common.static_setup(_princeton(gravity))
-        lowered = sj.solve_static.lower(model, settings)
-        wall, eq = common.median_time(lowered.compile(), model, repeats=repeats)
+        lowered, solve = common.compile_static(model, settings)
+        wall, eq = common.median_time(solve, model, settings, repeats=repeats)
         rows.append(dict(case="princeton static", variant=label,
                          traced=model.structure.has_gravity,
                          hlo_ops=common.count_hlo_ops(lowered), wall_ms=wall * 1e3,
                          iterations=int(eq.iterations),
                          per_iteration_us=wall / int(eq.iterations) * 1e6))
-    # helical_synthetic has no viscosity: damped=True traces zero viscous terms
-    model, dyn, settings, _ = common.dynamic_setup(common.scene_with("helical_synthetic.json"))
+    # helical_synthetic has no viscosity: a structure with has_viscosity=True traces zero
+    # viscous terms
+    plain, settings = common.dynamic_setup(common.scene_with("helical_synthetic.json"))
     for damped in (True, False):
-        state = sj.dynamics.initial_state(model, dyn, damped=damped)
-        lowered = sj.dynamics._simulate.lower(model, dyn, settings, state, damped=damped)
-        wall, traj = common.median_time(lowered.compile(), model, dyn, state, repeats=repeats)
+        model = plain.replace(structure=dataclasses.replace(plain.structure,
+                                                            has_viscosity=damped))
+        state = sj.initial_state(model)
+        lowered, roll = common.compile_dynamic(model, settings, state)
+        wall, traj = common.median_time(roll, model, settings, state, repeats=repeats)
         its = int(np.sum(np.asarray(traj.iterations)))
         rows.append(dict(case="synthetic dynamic", variant="zero viscosity" if damped else
                          "no viscosity", traced=damped, hlo_ops=common.count_hlo_ops(lowered),

@@ -28,16 +28,15 @@ SAVE_DT = 0.04  # s, spacing of the times at which runs are compared
 def measure(scene: sj.Scene, repeats=3):
     """Rollout of a dynamic scene: (Trajectory, compile s, median wall s), saving every
     0.04 s (the common comparison times)."""
-    model, dyn, settings, damped = common.dynamic_setup(scene)
-    save_every = max(1, int(round(SAVE_DT / settings.dt)))
-    settings = settings._replace(save_every=save_every,
-                                 steps=settings.steps // save_every * save_every)
-    state = sj.dynamics.initial_state(model, dyn, damped=damped)
+    model, settings = common.dynamic_setup(scene)
+    save_every = max(1, int(round(SAVE_DT / float(settings.dt))))
+    settings = settings.replace(save_every=save_every,
+                                steps=settings.steps // save_every * save_every)
+    state = sj.initial_state(model)
     start = time.perf_counter()
-    compiled = sj.dynamics._simulate.lower(model, dyn, settings, state,
-                                           damped=damped).compile()
+    _, compiled = common.compile_dynamic(model, settings, state)
     compile_s = time.perf_counter() - start
-    wall, traj = common.median_time(compiled, model, dyn, state, repeats=repeats)
+    wall, traj = common.median_time(compiled, model, settings, state, repeats=repeats)
     return traj, compile_s, wall
 
 

@@ -33,11 +33,11 @@ def run(quick=False, out=Path("out/bench")):
                                  repeats=repeats)
     rows = [dict(case="static solve (Princeton)", forward_ms=fwd * 1e3,
                  gradient_ms=grad * 1e3, ratio=grad / fwd)]
-    dmodel, dyn, dsettings, damped = common.dynamic_setup(
-        common.scene_with("helical_synthetic.json"), steps=300)
+    dmodel, dsettings = common.dynamic_setup(common.scene_with("helical_synthetic.json"),
+                                             steps=300)
 
     def rollout_tip(K, differentiable):
-        return sj.simulate(dmodel.replace(stiffness=K), dyn, dsettings, damped=damped,
+        return sj.simulate(dmodel.replace(stiffness=K), dsettings,
                            differentiable=differentiable).p[-1, -1, 2]
     fwd, _ = common.median_time(jax.jit(lambda K: rollout_tip(K, False)), dmodel.stiffness,
                                 repeats=repeats)

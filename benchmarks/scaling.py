@@ -24,6 +24,7 @@ import common  # noqa: E402
 
 import simsoft_jax as sj  # noqa: E402
 from simsoft_jax import assembly, dynamics, lie  # noqa: E402
+from simsoft_jax.dynamics import residual  # noqa: E402
 
 
 @partial(jax.jit, static_argnames="k")
@@ -37,14 +38,13 @@ def static_iterations(model, k):
     return jax.lax.fori_loop(0, k, body, (model.R0, model.p0))
 
 
-@partial(jax.jit, static_argnames=("k", "damped"))
-def dynamic_iterations(model, dyn, state, k, damped):
+@partial(jax.jit, static_argnames="k")
+def dynamic_iterations(model, state, k):
     """k full dynamic Newton iterations (residual, iteration matrix, factorization,
-    solve) of the first step (dt = 0.01 s)."""
-    settings = sj.DynamicSettings(dt=0.01, steps=1)
-    # (..., residual_and_matrix, t1): the second last of the step functions
-    residual_and_matrix = dynamics._step_functions(model, dyn, settings, state, 0.01,
-                                                   damped)[-2]
+    solve) of the first step (dt = 0.01 s, rho_inf = 0.9)."""
+    inert = dynamics.element_inertia(model)
+    residual_and_matrix = residual.step_functions(model, inert, 0.9, state,
+                                                  0.01).residual_and_matrix
 
     def body(_, w):
         r, blocks = residual_and_matrix(w)
@@ -61,16 +61,15 @@ def run(quick=False, out=Path("out/bench")):
         k = max(2, 2000 // n)
         scene = common.scene_with("cantilever_tip_force.toml", n)
         model, settings = common.static_setup(scene)
-        solve = sj.solve_static.lower(model, settings).compile()
-        solve_s, eq = common.median_time(solve, model, repeats=repeats)
+        _, solve = common.compile_static(model, settings)
+        solve_s, eq = common.median_time(solve, model, settings, repeats=repeats)
         it_s, _ = common.median_time(static_iterations, model, k, repeats=repeats)
         dscene = common.scene_with("helical_synthetic.json", n, dt=0.01)
-        dmodel, dyn, dsettings, damped = common.dynamic_setup(dscene, steps=20)
-        state = dynamics.initial_state(dmodel, dyn, damped=damped)
-        dit_s, _ = common.median_time(dynamic_iterations, dmodel, dyn, state, k, damped,
-                                      repeats=repeats)
-        roll = dynamics._simulate.lower(dmodel, dyn, dsettings, state, damped=damped).compile()
-        step_s, traj = common.median_time(roll, dmodel, dyn, state, repeats=repeats)
+        dmodel, dsettings = common.dynamic_setup(dscene, steps=20)
+        state = sj.initial_state(dmodel)
+        dit_s, _ = common.median_time(dynamic_iterations, dmodel, state, k, repeats=repeats)
+        _, roll = common.compile_dynamic(dmodel, dsettings, state)
+        step_s, traj = common.median_time(roll, dmodel, dsettings, state, repeats=repeats)
         rows.append(dict(elements=n, solve_ms=solve_s * 1e3, solve_iterations=int(eq.iterations),
                          static_iteration_us=it_s / k * 1e6,
                          dynamic_iteration_us=dit_s / k * 1e6,

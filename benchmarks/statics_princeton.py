@@ -46,9 +46,9 @@ def measure(scene: sj.Scene, repeats=5):
     """(Equilibrium, compile s, median solve s) of one static scene."""
     model, settings = common.static_setup(scene)
     start = time.perf_counter()
-    solver = sj.solve_static.lower(model, settings).compile()
+    _, solver = common.compile_static(model, settings)
     compile_s = time.perf_counter() - start
-    wall, eq = common.median_time(solver, model, repeats=repeats)
+    wall, eq = common.median_time(solver, model, settings, repeats=repeats)
     return eq, compile_s, wall
 
 

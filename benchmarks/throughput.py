@@ -11,7 +11,6 @@ static sweep). Not a test.
 """
 from __future__ import annotations
 
-import dataclasses
 import sys
 from pathlib import Path
 
@@ -58,13 +57,12 @@ def warm_map(angles: int, loads: int):
 
 
 def dynamic_sweep(cases: int):
-    model, dyn, settings, damped = common.dynamic_setup(
-        common.scene_with("helical_synthetic.json"))
+    model, settings = common.dynamic_setup(common.scene_with("helical_synthetic.json"))
 
     def one(scale):
-        channels = dataclasses.replace(dyn.channels, nodal_dead=dyn.channels.nodal_dead * scale)
-        traj = sj.simulate(model, dataclasses.replace(dyn, channels=channels), settings,
-                           damped=damped)
+        channels = model.channels.replace(nodal_dead=model.channels.nodal_dead * scale)
+        traj = sj.simulate(model.replace(nodal_dead=model.nodal_dead * scale,
+                                         channels=channels), settings)
         return traj.p[-1, -1], traj.converged
     sweep = jax.jit(jax.vmap(one))
     scales = jnp.linspace(0.5, 1.0, cases)

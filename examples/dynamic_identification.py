@@ -35,14 +35,13 @@ def main() -> int:
                   "geometry": {"kind": "straight", "length": 0.2}}],
         "constraints": [{"kind": "clamp", "rod": "rod", "node": 0}]})
     model = sj.build_model(scene)
-    dyn = sj.build_dynamics(model, scene)
     settings = sj.DynamicSettings(dt=0.01, steps=steps, rho_inf=0.9, save_every=2)
     simulate = lambda scale: sj.simulate(cal.apply_scales(model, NAMES, jnp.log(jnp.asarray(scale))),  # noqa: E731
-                                         dyn, settings, differentiable=True)
+                                         settings, differentiable=True)
     truth = simulate(TRUE)
     measured = np.asarray(truth.p[:, -1]) + 1e-4 * np.random.default_rng(1).standard_normal(truth.p[:, -1].shape)
     start = time.perf_counter()
-    fit = cal.fit_trajectory(model, dyn, settings, -1, measured, NAMES)
+    fit = cal.fit_trajectory(model, settings, -1, measured, NAMES)
     seconds = time.perf_counter() - start
     print(f"{elements} elements, {steps} steps of 10 ms, {len(measured)} observed tip positions")
     for name, s, sd, t in zip(NAMES, fit.scale, fit.std, TRUE):

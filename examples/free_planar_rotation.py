@@ -22,8 +22,6 @@ errors < 0.1 %; the largest error here is printed and saved (summary.json).
 
 Writes node_B_displacements.png (Fig. 11), errors.png (Fig. 12), snapshots.png, summary.json.
 """
-import dataclasses
-
 import matplotlib.pyplot as plt
 import numpy as np
 
@@ -46,8 +44,8 @@ def node_positions(omega, s):
 
 
 def free_arm(elements, settings):
-    """Model and dynamics of the free-free arm, straight and at rest (built once: the
-    three runs differ only in their start state, so they share one compilation)."""
+    """Model of the free-free arm, straight and at rest (built once: the three runs
+    differ only in their start state, so they share one compilation)."""
     scene = sj.Scene.from_dict({
         "name": "free_planar_rotation",
         "solver": {"kind": "dynamic", "t_end": settings.dt * settings.steps, "dt": settings.dt,
@@ -57,11 +55,10 @@ def free_arm(elements, settings):
                   "section": {"shape": "circle", "diameter": DIAMETER},
                   "elements": elements, "geometry": {"kind": "straight", "length": L}}],
     })
-    model = sj.build_model(scene)
-    return model, sj.build_dynamics(model, scene)
+    return sj.build_model(scene)
 
 
-def rollout(model, dyn, omega, settings):
+def rollout(model, omega, settings):
     """The FE rollout from the exact stretched state (S80): nodes at p_c + xi(s_i) e_x with
     identity frames, body velocities ``(0, 0, -w xi(s_i), 0, w, 0)``. Returns time (T,),
     positions (T, N, 3), the converged flag and xi(s_i) (N,)."""
@@ -69,8 +66,7 @@ def rollout(model, dyn, omega, settings):
     p0, xi = node_positions(omega, s)
     v0 = np.zeros((len(s), 6))
     v0[:, 2], v0[:, 4] = -omega * xi, omega
-    traj = sj.simulate(model.replace(p0=p0), dataclasses.replace(dyn, v0=v0), settings,
-                       damped=False)
+    traj = sj.simulate(model.replace(p0=p0, v0=v0), settings)
     return np.asarray(traj.time), np.asarray(traj.p), bool(traj.converged), xi
 
 
@@ -88,9 +84,9 @@ def main():
                "rho_inf": settings.rho_inf, "material": ALUMINIUM, "diameter_m": DIAMETER,
                "omegas_rad_s": list(OMEGAS), "cases": []}
     converged = True
-    model, dyn = free_arm(elements, settings)
+    model = free_arm(elements, settings)
     for omega, color in zip(OMEGAS, colors):
-        t, p, ok, xi = rollout(model, dyn, omega, settings)
+        t, p, ok, xi = rollout(model, omega, settings)
         converged &= ok
         direction = np.stack([np.cos(omega * t), 0.0 * t, -np.sin(omega * t)], axis=1)
         exact_B = xi[-1] * direction                        # node B relative to p_c
