@@ -33,7 +33,7 @@ def static_iterations(model, k):
     def body(_, c):
         R, p = c
         r, blocks = assembly.residual_and_tangent(model, R, p, 1.0)
-        dx = -assembly.block_solve(blocks, r)
+        dx = -linalg.block_solve(blocks, r)
         return jax.vmap(lie.compose_exp)(R, p, dx)
     return jax.lax.fori_loop(0, k, body, (model.R0, model.p0))
 
@@ -48,7 +48,7 @@ def dynamic_iterations(model, state, k):
 
     def body(_, w):
         r, blocks = residual_and_matrix(w)
-        return w - assembly.block_solve(blocks, r)
+        return w - linalg.block_solve(blocks, r)
     return jax.lax.fori_loop(0, k, body, jnp.zeros_like(state.v))
 
 

@@ -21,8 +21,8 @@ import numpy as np
 
 from . import lie
 from ._xla import jit
-from .assembly import (block_solve, check_tangent, implicit_solve, residual,
-                       residual_and_tangent)
+from .assembly import check_tangent, residual, residual_and_tangent
+from .linalg import block_solve, implicit_solve
 from .loads import full_loads
 from .model import Model
 from .status import Status, describe, raise_if_failed

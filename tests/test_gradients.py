@@ -167,7 +167,7 @@ def unrolled_tip(m, iterations=30, levels=5):
     def step(state, lam):
         R, p = state
         r, blocks = assembly.residual_and_tangent(m, R, p, lam)
-        dx = -jnp.linalg.solve(assembly.dense(blocks), r.reshape(-1)).reshape(-1, 6)
+        dx = -jnp.linalg.solve(linalg.dense(blocks), r.reshape(-1)).reshape(-1, 6)
         R, p = jax.vmap(lie.compose_exp)(R, p, dx)
         return (R, p), jnp.linalg.norm(r)
 

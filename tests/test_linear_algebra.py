@@ -17,16 +17,16 @@ def random_blocks(n, seed=0):
                                           rng.normal(size=(n - 1, 6, 6))))
 
 
-@pytest.mark.parametrize("n", [3, assembly.DENSE_LIMIT_NODES, assembly.DENSE_LIMIT_NODES + 1, 40])
+@pytest.mark.parametrize("n", [3, linalg.DENSE_LIMIT_NODES, linalg.DENSE_LIMIT_NODES + 1, 40])
 def test_factorized_solve_matches_numpy_on_both_paths(n):
     blocks = random_blocks(n)
-    factors = jax.jit(assembly.factorize)(blocks)
-    assert len(factors) == (2 if n <= assembly.DENSE_LIMIT_NODES else 4)
-    K = np.asarray(assembly.dense(blocks))
+    factors = jax.jit(linalg.factorize)(blocks)
+    assert len(factors) == (2 if n <= linalg.DENSE_LIMIT_NODES else 4)
+    K = np.asarray(linalg.dense(blocks))
     rng = np.random.default_rng(1)
     for _ in range(2):  # the same factors serve several right-hand sides
         b = rng.normal(size=(n, 6))
-        x = np.asarray(jax.jit(assembly.solve_factored)(factors, jnp.asarray(b)))
+        x = np.asarray(jax.jit(linalg.solve_factored)(factors, jnp.asarray(b)))
         np.testing.assert_allclose(x.reshape(-1), np.linalg.solve(K, b.reshape(-1)),
                                    rtol=1e-10, atol=1e-12)
 
@@ -34,15 +34,15 @@ def test_factorized_solve_matches_numpy_on_both_paths(n):
 @pytest.mark.parametrize("n", [5, 20])
 def test_implicit_solve_forward_and_transpose(n):
     blocks = random_blocks(n, seed=2)
-    K = np.asarray(assembly.dense(blocks))
+    K = np.asarray(linalg.dense(blocks))
     b = jnp.asarray(np.random.default_rng(3).normal(size=(n, 6)))
     c = jnp.asarray(np.random.default_rng(4).normal(size=(n, 6)))
-    x = assembly.implicit_solve(blocks, b)
+    x = linalg.implicit_solve(blocks, b)
     np.testing.assert_allclose(np.asarray(x).reshape(-1),
                                np.linalg.solve(K, np.asarray(b).reshape(-1)), rtol=1e-10,
                                atol=1e-12)
     # reverse mode uses the transposed solve: d(c . K^-1 b)/db = K^-T c
-    g = jax.grad(lambda bb: jnp.sum(c * assembly.implicit_solve(blocks, bb)))(b)
+    g = jax.grad(lambda bb: jnp.sum(c * linalg.implicit_solve(blocks, bb)))(b)
     np.testing.assert_allclose(np.asarray(g).reshape(-1),
                                np.linalg.solve(K.T, np.asarray(c).reshape(-1)), rtol=1e-10,
                                atol=1e-12)

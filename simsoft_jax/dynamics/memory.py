@@ -12,16 +12,16 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from ..assembly import factorize
+from ..linalg import Factors, factorize
 
 
 class NewtonMemory(NamedTuple):
-    """factors: the factorized iteration matrix (see :func:`assembly.factorize`); h: the
+    """factors: the factorized iteration matrix (see :func:`linalg.factorize`); h: the
     step size (s) it was built for; renew: rebuild it at the start of the next step (the
     last step had to rebuild it mid-way); vd_history (2,N,6): the accelerations one and two
     accepted steps back; h_history (2,): the sizes (s) of the last and the one-but-last
     accepted steps (0: none yet), for :func:`predicted_increment`."""
-    factors: tuple
+    factors: Factors
     h: jax.Array
     renew: jax.Array
     vd_history: jax.Array

@@ -14,7 +14,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from ..assembly import factorize, implicit_solve, solve_factored
+from ..linalg import Factors, factorize, implicit_solve, solve_factored
 from ..drives import held_increments, slide_maps
 from ..statics import step_norm, weighted_norm
 from ..status import Status
@@ -37,7 +37,7 @@ class _NewtonCarry(NamedTuple):
     w: jax.Array
     iterations: jax.Array
     status: jax.Array
-    factors: tuple
+    factors: Factors
     fresh: jax.Array
     previous: jax.Array
     rebuilt: jax.Array

@@ -16,7 +16,8 @@ import numpy as np
 
 from .. import element
 from .._xla import jit
-from ..assembly import apply_constraints, assemble_blocks, block_solve
+from ..assembly import apply_constraints, assemble_blocks
+from ..linalg import block_solve
 from ..drives import reduce, slide_maps
 from ..loads import loads_at
 from ..model import Model
