@@ -135,6 +135,10 @@ def build_dynamics(model: Model, scene, inertia_kind: str | None = None) -> Dyna
         for i in range(info.first_node, info.first_node + info.nodes):
             v_world = iv.linear + np.cross(iv.angular, p0[i] - base)
             v0[i] = np.concatenate([R0[i].T @ v_world, R0[i].T @ iv.angular])
+    for rod in scene.rods:  # a restart (initial.result): the saved body velocities
+        if getattr(rod, "initial_velocities", None) is not None:
+            first = rods[rod.name].first_node
+            v0[first:first + rod.nodes] = rod.initial_velocities
     drives = [c for c in scene.constraints if c.kind == "drive"]
     width = max([1] + [len(c.times) for c in drives])
 

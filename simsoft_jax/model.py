@@ -120,12 +120,24 @@ def _world_frames(rod):
 
 
 def _initial_frames(rod, R_ref, p_ref):
-    """Start configuration: the stress-free shape, or ``initial.points`` (base frame)."""
+    """Start configuration: the stress-free shape, or ``initial.points`` (base frame).
+
+    As many points as nodes: the node positions exactly, turned by ``initial.rotations``
+    (base frame) when given, else each stress-free frame turned by the smallest rotation
+    onto the points' chord tangent (a straight rod stretched along itself keeps its
+    reference rotations exactly). Any other count: a polyline, resampled by arc length.
+    """
     if rod.initial_points is None:
         return R_ref, p_ref
     Rb, pb = np.asarray(rod.base_rotation, float), np.asarray(rod.base_position, float)
-    R, p = geom.polyline_frames(rod.initial_points, rod.elements,
-                                start_rotation=Rb.T @ R_ref[0])
+    points = np.asarray(rod.initial_points, float)
+    if len(points) == len(R_ref):
+        if getattr(rod, "initial_rotations", None) is not None:
+            R = np.einsum("ij,njk->nik", Rb, np.asarray(rod.initial_rotations, float))
+        else:
+            R = geom.aligned_frames(R_ref, geom.chord_tangents(points) @ Rb.T)
+        return R, pb + points @ Rb.T
+    R, p = geom.polyline_frames(points, rod.elements, start_rotation=Rb.T @ R_ref[0])
     return np.einsum("ij,njk->nik", Rb, R), pb + p @ Rb.T
 
 
