@@ -21,7 +21,8 @@ import numpy as np
 __all__ = [
     "fail", "join", "index", "describe", "plain", "table", "check_keys", "require",
     "number", "positive", "integer", "string", "choice", "vector", "matrix",
-    "rotation_vector", "rotation_matrix", "rodrigues", "prefixed", "readonly",
+    "rotation_vector", "rotation_matrix", "rodrigues", "proper_rotations", "prefixed",
+    "readonly",
     "SpecBase", "same", "read_table", "toml_document",
 ]
 
@@ -193,6 +194,32 @@ def rodrigues(rotvec: np.ndarray) -> np.ndarray:
 
 def rotation_matrix(value: Any, path: str) -> np.ndarray:
     return rodrigues(rotation_vector(value, path))
+
+
+def proper_rotations(value: Any, path: str, tol: float = 1e-6) -> np.ndarray:
+    """A list of 3x3 rotation matrices (columns = axes) -> array (K, 3, 3).
+
+    Each must be orthonormal with determinant +1 to ``tol`` (max-abs of ``R^T R - I``);
+    one off by more than 1e-12 (but within ``tol``) is replaced by its nearest rotation
+    (polar factor), so the solvers only ever see rotations.
+    """
+    items = _sequence(value, path, "a list of 3x3 matrices (rows of 3 numbers)")
+    out = np.empty((len(items), 3, 3))
+    for i, item in enumerate(items):
+        ipath = index(path, i)
+        R = matrix(item, ipath, 3)
+        if R.shape != (3, 3):
+            fail(ipath, f"must be a 3x3 matrix (3 rows of 3 numbers), got {len(R)} rows")
+        error = float(np.abs(R.T @ R - np.eye(3)).max())
+        det = float(np.linalg.det(R))
+        if error > tol or abs(det - 1.0) > tol:
+            fail(ipath, f"must be a rotation (orthonormal, det +1, to {tol:g}); "
+                 f"max |R^T R - I| = {error:.3g}, det = {det:.6g}")
+        if error > 1e-12:
+            u, _, vt = np.linalg.svd(R)
+            R = u @ vt
+        out[i] = R
+    return out
 
 
 _ARG_PREFIX = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*): (.*)$", re.DOTALL)

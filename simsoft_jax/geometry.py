@@ -12,6 +12,11 @@ Every function returns nodal frames ``(R, p)`` with shapes ``(n+1, 3, 3)`` and
     ``a/(a^2+b^2)`` about local z and torsion ``b/(a^2+b^2)`` about local x; the rod
     starts along local x, curving toward local +y; the helix axis is the direction
     ``(torsion, 0, curvature)`` of the base frame.
+* start states (``initial.points``, see ``model._initial_frames``): as many points as
+  nodes are the nodes themselves; each stress-free frame is turned by the smallest
+  rotation onto the chord ``p[i+1] - p[i-1]`` (:func:`chord_tangents`,
+  :func:`aligned_frames`);
+  other counts are polylines, resampled like the polyline geometry below.
 * polyline: nodes evenly spaced in arc length along the points; tangents by central
   differences of the nodes; the section axes follow by parallel transport (rotation-
   minimizing frame) from the base frame.
@@ -82,6 +87,29 @@ def _rotation_between(a, b):
         return 2.0 * np.outer(axis, axis) - np.eye(3)
     V = _skew(v)
     return np.eye(3) + V + V @ V / (1.0 + c)
+
+
+def chords(points):
+    """Chord ``p[i+1] - p[i-1]`` at every point of ``points`` (P,3), one-sided at the ends
+    (``p[1] - p[0]``, ``p[-1] - p[-2]``); not normalized."""
+    p = np.asarray(points, float)
+    c = np.empty_like(p)
+    c[1:-1] = p[2:] - p[:-2]
+    c[0], c[-1] = p[1] - p[0], p[-1] - p[-2]
+    return c
+
+
+def chord_tangents(points):
+    """Unit tangents ``chords(points) / |chords(points)|`` (P,3)."""
+    c = chords(points)
+    return c / np.linalg.norm(c, axis=1, keepdims=True)
+
+
+def aligned_frames(R, tangents):
+    """Each frame ``R[i]`` (n,3,3) turned by the smallest rotation taking its x axis to the
+    unit vector ``tangents[i]`` (n,3). A frame whose x axis already is that vector is
+    returned unchanged (bit for bit)."""
+    return np.array([_rotation_between(Ri[:, 0], ti) @ Ri for Ri, ti in zip(R, tangents)])
 
 
 def polyline_frames(points, elements, start_rotation=None):

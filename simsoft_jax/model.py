@@ -143,12 +143,24 @@ def _world_frames(rod):
 
 
 def _initial_frames(rod, R_ref, p_ref):
-    """Start configuration: the stress-free shape, or ``initial.points`` (base frame)."""
+    """Start configuration: the stress-free shape, or ``initial.points`` (base frame).
+
+    As many points as nodes: the node positions exactly, turned by ``initial.rotations``
+    (base frame) when given, else each stress-free frame turned by the smallest rotation
+    onto the points' chord tangent (a straight rod stretched along itself keeps its
+    reference rotations exactly). Any other count: a polyline, resampled by arc length.
+    """
     if rod.initial_points is None:
         return R_ref, p_ref
     Rb, pb = np.asarray(rod.base_rotation, float), np.asarray(rod.base_position, float)
-    R, p = geom.polyline_frames(rod.initial_points, rod.elements,
-                                start_rotation=Rb.T @ R_ref[0])
+    points = np.asarray(rod.initial_points, float)
+    if len(points) == len(R_ref):
+        if getattr(rod, "initial_rotations", None) is not None:
+            R = np.einsum("ij,njk->nik", Rb, np.asarray(rod.initial_rotations, float))
+        else:
+            R = geom.aligned_frames(R_ref, geom.chord_tangents(points) @ Rb.T)
+        return R, pb + points @ Rb.T
+    R, p = geom.polyline_frames(points, rod.elements, start_rotation=Rb.T @ R_ref[0])
     return np.einsum("ij,njk->nik", Rb, R), pb + p @ Rb.T
 
 
@@ -174,7 +186,8 @@ def _check_held(scene):
 
 
 def _initial_velocities(scene, rods, R0, p0):
-    """Nodal body velocities (N,6) of the scene's ``[[initial_velocity]]`` rigid motions."""
+    """Nodal body velocities (N,6): the scene's ``[[initial_velocity]]`` rigid motions, and
+    the saved velocities of rods restarted from a result (``initial.result``)."""
     v0 = np.zeros((len(p0), 6))
     for iv in scene.initial_velocity:
         info = rods[iv.rod]
@@ -182,6 +195,10 @@ def _initial_velocities(scene, rods, R0, p0):
         for i in range(info.first_node, info.first_node + info.nodes):
             v_world = iv.linear + np.cross(iv.angular, p0[i] - base)
             v0[i] = np.concatenate([R0[i].T @ v_world, R0[i].T @ iv.angular])
+    for rod in scene.rods:
+        if rod.initial_velocities is not None:
+            first = rods[rod.name].first_node
+            v0[first:first + rod.elements + 1] = rod.initial_velocities
     return v0
 
 

@@ -121,7 +121,8 @@ class Result:
         return np.asarray(self.raw.v)[:, self._nodes(rod)].copy()
 
     def to_dict(self) -> dict:
-        """The result-file layout of the scene-format contract (plain Python types)."""
+        """The result-file layout of the scene-format contract (plain Python types);
+        dynamic results add per-rod ``velocities`` (T, nodes, 6), as :meth:`velocities`."""
         d = {"name": self.name, "kind": self.kind, "converged": self.converged,
              "status": self.status, "message": self.message,
              "newton_iterations": self.newton_iterations,
@@ -132,6 +133,8 @@ class Result:
                       for r in self.model.structure.rods}}
         if self.time is not None:
             d["time"] = self.time.tolist()
+            for r in self.model.structure.rods:  # body velocities: a restart needs them
+                d["rods"][r.name]["velocities"] = self.velocities(r.name).tolist()
         if not self.converged:
             d["failed_at"] = ({"time": self.failed_at} if self.time is not None else
                               {"load_level": self.load_level,
@@ -140,7 +143,8 @@ class Result:
 
     def save(self, path) -> Path:
         """Write the result as ``.json`` (contract layout) or ``.npz`` (same keys;
-        per-rod arrays as ``<rod>/positions`` and ``<rod>/rotations``)."""
+        per-rod arrays as ``<rod>/positions``, ``<rod>/rotations`` and, dynamic,
+        ``<rod>/velocities``)."""
         path = Path(path)
         if path.suffix == ".json":
             path.write_text(json.dumps(self.to_dict(), indent=1))
@@ -151,6 +155,8 @@ class Result:
             for rod in d["rods"]:
                 arrays[f"{rod}/positions"] = self.positions(rod)
                 arrays[f"{rod}/rotations"] = self.rotations(rod)
+                if self.time is not None:
+                    arrays[f"{rod}/velocities"] = self.velocities(rod)
             np.savez(path, **arrays)
         else:
             raise ValueError(f"output: unsupported suffix {path.suffix!r} (use .json or .npz)")

@@ -63,7 +63,9 @@ class RodSpec(SpecBase):
     geometry: GeometrySpec
     base_position: np.ndarray         # (3,)
     base_rotation: np.ndarray         # (3, 3), columns = local axes of node 0 in world
-    initial_points: np.ndarray | None = None  # (P, 3)
+    initial_points: np.ndarray | None = None  # (P, 3), base frame; P == nodes: exact
+    initial_rotations: np.ndarray | None = None   # (nodes, 3, 3), base frame (P == nodes)
+    initial_velocities: np.ndarray | None = None  # (nodes, 6) body [v; w] (a restart)
     segments: tuple | None = None     # SegmentSpec per consecutive piece (None: uniform rod)
 
     @property
