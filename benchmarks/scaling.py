@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import common  # noqa: E402
 
 import simsoft_jax as sj  # noqa: E402
-from simsoft_jax import assembly, dynamics, lie  # noqa: E402
+from simsoft_jax import assembly, dynamics, lie, linalg  # noqa: E402
 from simsoft_jax.dynamics import residual  # noqa: E402
 
 

@@ -94,13 +94,19 @@ def raise_if_failed(kind: str, converged, status, cause, where, residual):
 
 
 @jax.custom_jvp
-def poison_gradient(ok, x):
-    """Identity on ``x``; its derivative is NaN where ``ok`` is False (a failed solve has
-    no derivative, and a finite one would be wrong)."""
+def poison_gradient(ok, x, inputs):
+    """Identity on ``x``; where ``ok`` is False its derivative with respect to every float
+    array of ``inputs`` (a pytree, e.g. the model and start state) is NaN: a failed solve
+    has no derivative, and a finite one (often exactly zero, since the state is frozen
+    at the failure) would be wrong."""
     return x
 
 
 @poison_gradient.defjvp
 def _poison_gradient_jvp(primals, tangents):
-    ok, x = primals
-    return x, tangents[1] * jax.numpy.where(ok, 1.0, jax.numpy.nan)
+    ok, x, _ = primals
+    _, tx, t_inputs = tangents
+    floats = [t for t in jax.tree_util.tree_leaves(t_inputs)
+              if jax.numpy.issubdtype(t.dtype, jax.numpy.floating)]
+    total = sum((jax.numpy.sum(t) for t in floats), jax.numpy.zeros((), x.dtype))
+    return x, tx + jax.numpy.where(ok, 0.0, jax.numpy.nan) * total

@@ -1,51 +1,12 @@
-"""Block-tridiagonal factorization (dense LU for short chains, block Thomas for long ones),
-the implicit-function solve, and the closed-form element tangent, against NumPy and
-forward-mode autodiff references (the assembled tangent against finite differences is in
-test_model_kinematics.py)."""
+"""The closed-form element tangent against forward-mode autodiff references (the block
+linear algebra is tested in test_linalg_couplings.py, the assembled tangent against
+finite differences in test_model_kinematics.py)."""
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from simsoft_jax import assembly, element, lie
-
-
-def random_blocks(n, seed=0):
-    rng = np.random.default_rng(seed)
-    diag = rng.normal(size=(n, 6, 6)) + 8.0 * np.eye(6)
-    return tuple(jnp.asarray(b) for b in (diag, rng.normal(size=(n - 1, 6, 6)),
-                                          rng.normal(size=(n - 1, 6, 6))))
-
-
-@pytest.mark.parametrize("n", [3, linalg.DENSE_LIMIT_NODES, linalg.DENSE_LIMIT_NODES + 1, 40])
-def test_factorized_solve_matches_numpy_on_both_paths(n):
-    blocks = random_blocks(n)
-    factors = jax.jit(linalg.factorize)(blocks)
-    assert len(factors) == (2 if n <= linalg.DENSE_LIMIT_NODES else 4)
-    K = np.asarray(linalg.dense(blocks))
-    rng = np.random.default_rng(1)
-    for _ in range(2):  # the same factors serve several right-hand sides
-        b = rng.normal(size=(n, 6))
-        x = np.asarray(jax.jit(linalg.solve_factored)(factors, jnp.asarray(b)))
-        np.testing.assert_allclose(x.reshape(-1), np.linalg.solve(K, b.reshape(-1)),
-                                   rtol=1e-10, atol=1e-12)
-
-
-@pytest.mark.parametrize("n", [5, 20])
-def test_implicit_solve_forward_and_transpose(n):
-    blocks = random_blocks(n, seed=2)
-    K = np.asarray(linalg.dense(blocks))
-    b = jnp.asarray(np.random.default_rng(3).normal(size=(n, 6)))
-    c = jnp.asarray(np.random.default_rng(4).normal(size=(n, 6)))
-    x = linalg.implicit_solve(blocks, b)
-    np.testing.assert_allclose(np.asarray(x).reshape(-1),
-                               np.linalg.solve(K, np.asarray(b).reshape(-1)), rtol=1e-10,
-                               atol=1e-12)
-    # reverse mode uses the transposed solve: d(c . K^-1 b)/db = K^-T c
-    g = jax.grad(lambda bb: jnp.sum(c * linalg.implicit_solve(blocks, bb)))(b)
-    np.testing.assert_allclose(np.asarray(g).reshape(-1),
-                               np.linalg.solve(K.T, np.asarray(c).reshape(-1)), rtol=1e-10,
-                               atol=1e-12)
+from simsoft_jax import element, lie
 
 
 @pytest.mark.parametrize("angle", [0.0, 1e-7, 0.4, 1.7, 3.0])

@@ -20,7 +20,7 @@ from scipy.spatial.transform import Rotation
 import simsoft_jax as sj  # enables float64
 import jax
 import jax.numpy as jnp
-from simsoft_jax import assembly, element, kinematics
+from simsoft_jax import assembly, element, kinematics, linalg
 
 AL_E, AL_G, AL_RHO = 71.7e9, 27.37e9, 2679.0  # aluminum_7075 (scene-format.md)
 

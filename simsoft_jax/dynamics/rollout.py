@@ -163,7 +163,7 @@ def _simulate(model: Model, settings: DynamicSettings, state: State | None,
     final, (t, R, p, v, its, subs) = jax.lax.scan(save_block, carry0, None, length=n_saves)
     cat = lambda first, rest: jnp.concatenate([first[None], rest])  # noqa: E731
     converged = ~final.failed
-    R, p, v = (poison_gradient(converged, x) for x in
+    R, p, v = (poison_gradient(converged, x, (model, state)) for x in
                (cat(state.R, R), cat(state.p, p), cat(state.v, v)))
     return Trajectory(cat(state.t, t), R, p, v, converged, final.failed_at,
                       its.reshape(-1), subs.reshape(-1), final.state, final.status,
