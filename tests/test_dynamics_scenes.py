@@ -49,7 +49,6 @@ from __future__ import annotations
 import copy
 import json
 import math
-from pathlib import Path
 
 import jax
 import numpy as np
@@ -57,11 +56,12 @@ import pytest
 
 import simsoft_jax as sj
 from simsoft_jax import dynamics as dy
+from conftest import SCENES_DIR
 
 scipy_integrate = pytest.importorskip("scipy.integrate")
 scipy_optimize = pytest.importorskip("scipy.optimize")
 
-SCENES = Path(__file__).resolve().parents[1] / "examples" / "scenes"
+SCENES = SCENES_DIR
 HELICAL = ("helical_synthetic", "helical_spring_steel", "helical_silicone")
 DTS = (0.01, 0.005, 0.0025)
 
@@ -145,7 +145,7 @@ def test_result_velocities_are_the_rate_of_the_positions(helical_runs):
     rate = (p[2:] - p[:-2]) / (2 * h)
     assert np.abs(world[1:-1] - rate).max() < 5e-3 * np.abs(rate).max()
     with pytest.raises(ValueError, match="velocities: a static result"):
-        sj.run("examples/scenes/cantilever_tip_force.toml").velocities("beam")
+        sj.run(SCENES / "cantilever_tip_force.toml").velocities("beam")
 
 
 @pytest.mark.parametrize("name", HELICAL)
