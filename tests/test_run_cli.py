@@ -241,6 +241,7 @@ def test_cli_validate(tmp_path, cli_env):
     assert "loads[0].node" in proc.stderr
 
 
+@pytest.mark.slow
 def test_cli_run_plots_and_animates_a_dynamic_scene(tmp_path, cli_env):
     """``run --plot --animate``: snapshots and a GIF of a short dynamic run; asking for an
     animation of a static scene is an input error (exit 2)."""
