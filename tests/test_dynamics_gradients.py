@@ -6,6 +6,7 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import simsoft_jax as sj
 from simsoft_jax import dynamics as dy
@@ -24,6 +25,7 @@ SCENE = {
 SETTINGS = dy.DynamicSettings(dt=0.01, steps=50, rho_inf=0.9, tolerance=1e-12)
 
 
+@pytest.mark.slow
 def test_rollout_gradient_wrt_load_scale_and_initial_velocity():
     scene = sj.Scene.from_dict(SCENE)
     model = sj.build_model(scene)

@@ -50,6 +50,7 @@ def test_replay_equals_unbatched_solve_of_the_pitched_root(seed_replay):
     assert abs(local[0] - pr.LENGTH) < 0.05 * pr.LENGTH
 
 
+@pytest.mark.slow
 def test_small_loads_converge_to_the_timoshenko_cantilever():
     """Without gravity and with a small tip load the beam deflects by
     ``F r^2 (3L - r)/(6 EI) + F r/GA`` at station r: along z at theta = 0 (EI_y, GA_z) and
