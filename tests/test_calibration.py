@@ -77,6 +77,7 @@ def _targets(beam, cases, nodes, log_scale=None, noise=0.0, seed=0):
     return targets, noise * rms
 
 
+@pytest.mark.slow
 def test_sensitivity_matches_finite_differences(beam):
     targets, _ = _targets(beam, [(30.0, 3.0), (75.0, 1.5)], [4, 8])
     residual = jax.jit(cal.static_residual_fn(targets, NAMES))
@@ -89,6 +90,7 @@ def test_sensitivity_matches_finite_differences(beam):
         np.testing.assert_allclose(J[:, j], fd, rtol=1e-6, atol=1e-9 * np.abs(fd).max())
 
 
+@pytest.mark.slow
 def test_identifiability_recovers_known_factors_within_two_sigma(beam):
     """Issue 5, 3a: seven load cases, four stations each, noise 1 % of the rms deflection."""
     true = np.array([1.2, 0.85, 1.1])
@@ -112,6 +114,7 @@ def _ansys_targets(beam, angles):
     return pr.calibration_targets(measured, beam)
 
 
+@pytest.mark.slow
 def test_ansys_solid_calibration_lowers_the_held_out_error(beam):
     """Issue 5, 3b: from the seed's section constants, fit EI_y, EI_z, GJ on theta = 0,
     30, 60, 90 (both loads); the eq. (112)-style tip error on 15, 45, 75 falls."""
@@ -127,6 +130,7 @@ def test_ansys_solid_calibration_lowers_the_held_out_error(beam):
     assert np.all(np.abs(np.log(fit.scale)) < 0.5)      # physically plausible corrections
 
 
+@pytest.mark.slow
 def test_dynamic_identification_recovers_viscosity_and_stiffness():
     """Issue 5, part 4: a soft cantilever released under gravity; its tip trajectory
     (noise 0.1 mm) identifies the Kelvin-Voigt viscosity and EI_y through rollout
@@ -167,6 +171,7 @@ def _scene(name, force):
     return sj.Scene.from_dict(data)
 
 
+@pytest.mark.slow
 def test_calibrate_command_fits_files(tmp_path, capsys):
     """End to end: two scene files, measurements from known factors (no noise), the
     fitted factors come back to 1e-6."""

@@ -4,6 +4,7 @@ against central finite differences of plain (non-differentiable) rollouts."""
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import simsoft_jax as sj
 from simsoft_jax import dynamics as dy
@@ -22,6 +23,7 @@ SCENE = {
 SETTINGS = dy.DynamicSettings(dt=0.01, steps=50, rho_inf=0.9, tolerance=1e-12)
 
 
+@pytest.mark.slow
 def test_rollout_gradient_wrt_load_scale_and_initial_velocity():
     scene = sj.Scene.from_dict(SCENE)
     model = sj.build_model(scene)

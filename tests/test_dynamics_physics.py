@@ -36,19 +36,12 @@ import simsoft_jax as sj  # enables float64
 import jax
 import jax.numpy as jnp
 from simsoft_jax import dynamics as dy
+from conftest import skew
 
 TOL = 1e-12  # Newton tolerance of every rollout here (largest nodal correction)
 
 
 # ----------------------------------------------------------------------------- references
-def skew(w):
-    w = np.asarray(w, float)
-    out = np.zeros(w.shape[:-1] + (3, 3))
-    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -w[..., 2], w[..., 1], -w[..., 0]
-    out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = w[..., 2], -w[..., 1], w[..., 0]
-    return out
-
-
 def ad(h):
     """ad_h = [[W, U], [0, W]] for h = [U; w] (spec S3)."""
     A = np.zeros((6, 6))

@@ -49,7 +49,6 @@ from __future__ import annotations
 import copy
 import json
 import math
-from pathlib import Path
 
 import jax
 import numpy as np
@@ -57,11 +56,12 @@ import pytest
 
 import simsoft_jax as sj
 from simsoft_jax import dynamics as dy
+from conftest import SCENES_DIR
 
 scipy_integrate = pytest.importorskip("scipy.integrate")
 scipy_optimize = pytest.importorskip("scipy.optimize")
 
-SCENES = Path(__file__).resolve().parents[1] / "examples" / "scenes"
+SCENES = SCENES_DIR
 HELICAL = ("helical_synthetic", "helical_spring_steel", "helical_silicone")
 DTS = (0.01, 0.005, 0.0025)
 
@@ -118,6 +118,7 @@ def rod_length(result) -> float:
 
 # ------------------------------------------------------------------------- helical scenes
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", HELICAL)
 def test_helical_scene_runs_converged_at_seed_time_step(helical_runs, name):
     r = helical_runs[name, 0.01]
@@ -131,6 +132,7 @@ def test_helical_scene_runs_converged_at_seed_time_step(helical_runs, name):
     assert tip(r)[-1, 1] > 0.1 * rod_length(r)
 
 
+@pytest.mark.slow
 def test_result_velocities_are_the_rate_of_the_positions(helical_runs):
     """Result.velocities: the world velocity ``R v`` of every node equals the central
     difference of its saved positions (spacing h = 0.01 s: truncation h^2/6 times the
@@ -145,9 +147,10 @@ def test_result_velocities_are_the_rate_of_the_positions(helical_runs):
     rate = (p[2:] - p[:-2]) / (2 * h)
     assert np.abs(world[1:-1] - rate).max() < 5e-3 * np.abs(rate).max()
     with pytest.raises(ValueError, match="velocities: a static result"):
-        sj.run("examples/scenes/cantilever_tip_force.toml").velocities("beam")
+        sj.run(SCENES / "cantilever_tip_force.toml").velocities("beam")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", HELICAL)
 def test_helical_scene_converges_in_time(helical_runs, name):
     runs = {dt: helical_runs[name, dt] for dt in DTS}
@@ -197,6 +200,7 @@ def _shoot_tip_wrench(K, L, F, M, steps=3):
     return ptip
 
 
+@pytest.mark.slow
 def test_spring_steel_ends_near_quasi_static_equilibrium(helical_runs):
     """Loads grow over 3 s, ~17 first-mode periods: the rod follows the quasi-static
     path. Independent reference: shooting on the continuum rod at the t = 3 s loads."""
@@ -217,6 +221,7 @@ def test_spring_steel_ends_near_quasi_static_equilibrium(helical_runs):
 
 # ------------------------------------------------------------------------- hard cases
 
+@pytest.mark.slow
 def test_spring_steel_stiff_axial_modes_at_seed_time_step(helical_runs):
     """Axial element frequency sqrt(EA/rhoA)/L_e = 1e5 rad/s, 1000 x 1/dt: the run still
     converges at every step (sub-stepping is allowed and reported)."""
@@ -240,6 +245,7 @@ def test_spring_steel_stiff_axial_modes_at_seed_time_step(helical_runs):
     assert np.all(chord > lower * (1 - 1e-4)) and np.all(chord < L_e * (1 + 1e-4))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rho_inf", [0.0, 1.0])
 def test_synthetic_extreme_spectral_radius(helical_runs, rho_inf):
     """rho_inf = 0 (asymptotic annihilation) and 1 (no numerical dissipation) both run to

@@ -35,10 +35,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import EXAMPLES_DIR, skew as hat
+
 scipy_integrate = pytest.importorskip("scipy.integrate")
 scipy_optimize = pytest.importorskip("scipy.optimize")
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+pytestmark = pytest.mark.slow   # subprocess lanes, minutes
+
+EXAMPLES = EXAMPLES_DIR
 
 FIGURES = {
     "pure_bending": ["pure_bending.png", "pure_bending_3d.png"],
@@ -104,10 +108,6 @@ def examples(request, tmp_path_factory):
     yield futures
     for pool in pools:
         pool.shutdown(wait=True, cancel_futures=True)
-
-
-def hat(x):
-    return np.array([[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]])
 
 
 def circle_constants(E, nu, density, d):

@@ -64,6 +64,7 @@ def test_translation_coefficients_and_derivatives_match_closed_forms():
     np.testing.assert_allclose(second, [2 / 720, 2 / 5040], rtol=1e-14)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("angle", [0.0, 1e-7, 0.6, 2.0])
 def test_dead_load_is_the_gradient_of_its_potential_with_matching_tangent(angle):
     """Closed-form dead distributed load (spec S44) against the potential

@@ -21,6 +21,7 @@ import simsoft_jax as sj  # enables float64
 import jax
 import jax.numpy as jnp
 from simsoft_jax import assembly, element, kinematics, linalg
+from conftest import rot_z, skew
 
 AL_E, AL_G, AL_RHO = 71.7e9, 27.37e9, 2679.0  # aluminum_7075 (scene-format.md)
 
@@ -35,10 +36,6 @@ internal_force = jax.jit(element.internal_force)
 
 
 # ----------------------------------------------------------------------------- references
-def skew(w):
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-
-
 def hat(xi):
     X = np.zeros((4, 4))
     X[:3, :3], X[:3, 3] = skew(xi[3:]), xi[:3]
@@ -70,11 +67,6 @@ def log_se3(H):
 
 def rotvec(v):
     return Rotation.from_rotvec(np.asarray(v, float)).as_matrix()
-
-
-def rot_z(a):
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def random_rotation(rng):

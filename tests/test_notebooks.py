@@ -14,12 +14,13 @@ import json
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
+from conftest import NOTEBOOKS_DIR, REPO_ROOT
+
+ROOT = REPO_ROOT
+NOTEBOOKS = sorted(NOTEBOOKS_DIR.glob("*.ipynb"))
 
 RUNNER = r"""
 import json, sys
@@ -39,6 +40,7 @@ def test_notebooks_exist():
         assert name in names
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
 def test_notebook_runs_in_fast_mode(path, tmp_path, tmp_path_factory):
     """The code cells run in order in one namespace without error (the notebooks check

@@ -17,7 +17,7 @@ from matplotlib import animation  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
 from simsoft_jax import plotting  # noqa: E402
-from reference_rotations import rot_x, rot_y
+from conftest import arc, rot_x, rot_y  # noqa: E402
 
 
 def twisted_rod(n=4, length=1.0, twist=np.pi / 2):
@@ -26,12 +26,6 @@ def twisted_rod(n=4, length=1.0, twist=np.pi / 2):
     p = np.stack([s, 0 * s, 0 * s], axis=1)
     R = np.stack([rot_x(twist * si / length) for si in s])
     return p, R
-
-
-def arc(kappa, s):
-    """Exact pure-bending frames about y (spec S74-S75): (M, 3), (M, 3, 3)."""
-    p = np.stack([np.sin(kappa * s) / kappa, 0 * s, -(1 - np.cos(kappa * s)) / kappa], axis=1)
-    return p, np.stack([rot_y(kappa * si) for si in s])
 
 
 class StubResult:

@@ -10,6 +10,7 @@ import simsoft_jax as sj
 from simsoft_jax import princeton as pr
 from simsoft_jax import lie
 from simsoft_jax.cli import main
+from conftest import SCENES_DIR
 
 ELEMENTS = 8
 
@@ -37,7 +38,7 @@ def test_replay_equals_unbatched_solve_of_the_pitched_root(seed_replay):
     """The scene file pitches the root by 30 deg and hangs a vertical 2 lbf weight with
     vertical gravity (the physical set-up); the replay rotates loads instead. Rotating the
     file's tip displacement into the root axes must give the replay's deflections."""
-    data = sj.load_scene("examples/scenes/princeton_theta30.toml").to_dict()
+    data = sj.load_scene(SCENES_DIR / "princeton_theta30.toml").to_dict()
     data["rods"][0]["elements"] = ELEMENTS
     result = sj.run(sj.Scene.from_dict(data))
     R_root = np.asarray(lie.exp_so3(np.radians(30.0) * np.array([1.0, 0.0, 0.0])))
@@ -49,6 +50,7 @@ def test_replay_equals_unbatched_solve_of_the_pitched_root(seed_replay):
     assert abs(local[0] - pr.LENGTH) < 0.05 * pr.LENGTH
 
 
+@pytest.mark.slow
 def test_small_loads_converge_to_the_timoshenko_cantilever():
     """Without gravity and with a small tip load the beam deflects by
     ``F r^2 (3L - r)/(6 EI) + F r/GA`` at station r: along z at theta = 0 (EI_y, GA_z) and

@@ -15,15 +15,15 @@ import json
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import simsoft_jax as sj  # enables float64
+from conftest import REPO_ROOT, SCENES_DIR
 
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "scenes"
+ROOT = REPO_ROOT
+EXAMPLES = SCENES_DIR
 CONTRACT_KEYS = {"name", "kind", "converged", "newton_iterations", "residual_norm",
                  "wall_time_s", "compile_time_s", "rods"}
 L, W, H, E = 0.508, 3.2024e-3, 12.377e-3, 71.7e9
@@ -241,6 +241,7 @@ def test_cli_validate(tmp_path, cli_env):
     assert "loads[0].node" in proc.stderr
 
 
+@pytest.mark.slow
 def test_cli_run_plots_and_animates_a_dynamic_scene(tmp_path, cli_env):
     """``run --plot --animate``: snapshots and a GIF of a short dynamic run; asking for an
     animation of a static scene is an input error (exit 2)."""

@@ -6,15 +6,15 @@ import math
 import re
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from simsoft_jax.scene import Scene, load_scene, save_scene
+from conftest import REPO_ROOT, SCENES_DIR
 
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = sorted((ROOT / "examples" / "scenes").glob("*"))
+ROOT = REPO_ROOT
+EXAMPLES = sorted(SCENES_DIR.glob("*"))
 EXAMPLES = [p for p in EXAMPLES if p.suffix in (".toml", ".json")]
 
 BASE = {

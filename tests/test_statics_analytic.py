@@ -21,7 +21,7 @@ import pytest
 from scipy import integrate, optimize, special
 
 import simsoft_jax as sj
-from reference_rotations import rot_x, rot_y
+from conftest import arc, rot_x, rot_y
 
 L = 1.0
 # distinct bending/torsion stiffnesses so that a mixed-up axis or stiffness index shows
@@ -40,32 +40,6 @@ EXACT = 1e-10      # pure bending / torsion: exact for any mesh, up to round-off
 # ------------------------------------------------------------------------------------------
 # closed forms
 # ------------------------------------------------------------------------------------------
-
-def rot_z(a):
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def arc(kappa, s, axis):
-    """Clamped rod along +x bent with constant curvature ``kappa`` about local ``axis``.
-
-    The section frame is R(s) = exp(s kappa e_axis^); the centreline integrates its first
-    column: about y the tangent is (cos, 0, -sin) (tip moves to -z for kappa > 0, S74),
-    about z it is (cos, sin, 0) (tip moves to +y)."""
-    s = np.asarray(s, float)
-    c, sn = np.cos(kappa * s), np.sin(kappa * s)
-    along, across = sn / kappa, (1.0 - c) / kappa
-    zero = np.zeros_like(s)
-    if axis == "y":
-        p = np.stack([along, zero, -across], axis=1)
-        R = np.stack([rot_y(kappa * si) for si in s])
-    elif axis == "z":
-        p = np.stack([along, across, zero], axis=1)
-        R = np.stack([rot_z(kappa * si) for si in s])
-    else:
-        raise ValueError(axis)
-    return p, R
-
 
 def elastica_tip(beta):
     """Tip of an inextensible cantilever (clamped along +x) under a dead tip force

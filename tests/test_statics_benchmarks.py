@@ -14,7 +14,6 @@ shared/data/princeton/README.md and model_predictions_tip.csv).
    origin at the clamp; undeformed tip at (70.71, 29.29, 0)).
 """
 import csv
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,6 +21,7 @@ import pytest
 import simsoft_jax as sj  # enables float64
 import jax
 import jax.numpy as jnp
+from conftest import SHARED_DIR
 
 # ------------------------------------------------------------------------ Princeton set-up
 L = 0.508
@@ -60,9 +60,7 @@ ANSYS_BEAM = {  # ANSYS beam elements, Obrezkov et al. 2022 (ANCFBeamTest.py 375
            (0.181861627, 0.011578375), (0.196097131, 0.006248967384),
            (0.200677707, 0.0)],
 }
-# shared/ sits beside the repository (as on CI and in the developers' checkout)
-CSV = (Path(__file__).resolve().parents[2] / "shared" / "data" / "princeton"
-       / "model_predictions_tip.csv")
+CSV = SHARED_DIR / "data" / "princeton" / "model_predictions_tip.csv"
 
 # Default solver settings. (Before commit c8ab6f6 the default damping needed up to 1528
 # Newton iterations for one of these cases, 108 s for the 14-case batch; now 21-46.)

@@ -8,6 +8,7 @@ import pytest
 
 import simsoft_jax as sj
 from simsoft_jax import sweeps
+from conftest import SCENES_DIR
 
 L, ELEMENTS = 0.3, 6
 SCENE = {"name": "strip", "solver": {"kind": "static"},
@@ -70,7 +71,7 @@ def vary_load_scale(model, q):
 
 
 def test_dynamic_sweep_matches_single_rollouts():
-    scene = sj.load_scene("examples/scenes/helical_synthetic.json").to_dict()
+    scene = sj.load_scene(SCENES_DIR / "helical_synthetic.json").to_dict()
     scene["rods"][0]["elements"] = 3
     scene = sj.Scene.from_dict(scene)
     model = sj.build_model(scene)

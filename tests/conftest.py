@@ -1,0 +1,79 @@
+"""Shared test infrastructure.
+
+* Repository paths, computed from this file, so that every test finds the examples, scenes
+  and notebooks whatever folder pytest is started from.
+* The checkout's own package first on the import path, in this process and in the
+  subprocesses the tests start (examples, notebooks, the command line): an installed copy
+  elsewhere (another checkout's editable install) is never the one under test.
+* Independent NumPy references used by several test modules (elementary rotations, the
+  skew matrix, the exact pure-bending arc).
+
+pytest puts this folder on ``sys.path`` (its default ``prepend`` import mode, no
+``__init__.py`` here), so test modules import the helpers with ``from conftest import ...``.
+"""
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES_DIR = REPO_ROOT / "examples"
+SCENES_DIR = EXAMPLES_DIR / "scenes"
+NOTEBOOKS_DIR = REPO_ROOT / "notebooks"
+# shared/ sits beside the repository (as on CI and in the developers' checkout)
+SHARED_DIR = REPO_ROOT.parent / "shared"
+
+sys.path.insert(0, str(REPO_ROOT))
+os.environ["PYTHONPATH"] = os.pathsep.join(
+    [str(REPO_ROOT)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p])
+
+
+# ----------------------------------------------------------------------------- references
+def rot_x(a):
+    """Rotation by ``a`` (rad) about x."""
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def rot_y(a):
+    """Rotation by ``a`` (rad) about y."""
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def rot_z(a):
+    """Rotation by ``a`` (rad) about z."""
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def skew(w):
+    """The skew matrix ``w^`` (``w^ x = w cross x``), batched over leading axes."""
+    w = np.asarray(w, float)
+    out = np.zeros(w.shape[:-1] + (3, 3))
+    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -w[..., 2], w[..., 1], -w[..., 0]
+    out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = w[..., 2], -w[..., 1], w[..., 0]
+    return out
+
+
+def arc(kappa, s, axis="y"):
+    """Clamped rod along +x bent with constant curvature ``kappa`` about local ``axis``
+    (exact pure bending, spec S74-S75): positions (M, 3) and frames (M, 3, 3).
+
+    The section frame is R(s) = exp(s kappa e_axis^); the centreline integrates its first
+    column: about y the tangent is (cos, 0, -sin) (tip moves to -z for kappa > 0, S74),
+    about z it is (cos, sin, 0) (tip moves to +y)."""
+    s = np.asarray(s, float)
+    c, sn = np.cos(kappa * s), np.sin(kappa * s)
+    along, across = sn / kappa, (1.0 - c) / kappa
+    zero = np.zeros_like(s)
+    if axis == "y":
+        p = np.stack([along, zero, -across], axis=1)
+        R = np.stack([rot_y(kappa * si) for si in s])
+    elif axis == "z":
+        p = np.stack([along, across, zero], axis=1)
+        R = np.stack([rot_z(kappa * si) for si in s])
+    else:
+        raise ValueError(axis)
+    return p, R
