@@ -6,7 +6,8 @@ suggest resolutions for a few target errors from the work-precision data.
 Benchmarks: statics (work-precision, Princeton and elastica), dynamics (helical scenes:
 real-time factor, work-precision in elements and dt), scaling (cost against elements),
 compile (compile time per scene kind, what each scene traces), throughput (vmapped
-sweeps), gradients (gradient cost against the forward run). ``main(argv)`` returns 0.
+sweeps), gradients (gradient cost against the forward run), tangents (closed-form
+against autodiff tangents). ``main(argv)`` returns 0.
 Timings are medians after warm-up; the machine and load average are recorded in
 ``DIR/machine.json``. Nothing here is a test.
 """
@@ -24,6 +25,7 @@ import dynamics_helical  # noqa: E402
 import gradients  # noqa: E402
 import scaling  # noqa: E402
 import statics_princeton  # noqa: E402
+import tangent_paths  # noqa: E402
 import throughput  # noqa: E402
 
 from simsoft_jax import advisor  # noqa: E402
@@ -35,6 +37,7 @@ BENCHMARKS = {
     "compile": compile_times.run,
     "throughput": throughput.run,
     "gradients": gradients.run,
+    "tangents": tangent_paths.run,
 }
 TARGETS = (1e-2, 1e-3, 1e-4)
 

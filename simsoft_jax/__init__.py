@@ -28,7 +28,7 @@ import jax as _jax
 _jax.config.update("jax_enable_x64", True)
 
 from .dynamics import (DynamicSettings, State, Trajectory, energy,  # noqa: E402
-                       initial_state, rollout, simulate)
+                       initial_state, simulate)
 from .loads import LoadChannels  # noqa: E402
 from .materials import BUILTIN_MATERIALS, Material, get_material  # noqa: E402
 from .model import Model, Structure, build_model  # noqa: E402
@@ -45,7 +45,7 @@ __all__ = [
     "Model", "Result", "Scene", "Section", "SolveError", "State", "StaticSettings", "Status",
     "Structure", "Trajectory", "build_model", "circle", "custom_inertia", "custom_stiffness",
     "energy", "get_material", "inertia_diagonal", "initial_state", "load_scene", "rectangle",
-    "rollout", "run", "save_scene", "semicircle", "simulate", "solve_static",
+    "run", "save_scene", "semicircle", "simulate", "solve_static",
     "stiffness_diagonal", "tube", "viscosity_diagonal",
 ]
 __version__ = "0.1.0"

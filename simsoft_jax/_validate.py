@@ -351,3 +351,13 @@ def toml_document(data: dict) -> str:
                 lines += ["", f"[[{_toml_key(key)}]]"]
                 lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in item.items()]
     return "\n".join(lines).lstrip("\n") + "\n"
+
+
+def polyline(value: Any, path: str) -> np.ndarray:
+    """Points (P,3), P >= 2, no two consecutive points equal."""
+    points = matrix(value, path, 3, min_rows=2)
+    lengths = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    for j, seg in enumerate(lengths):
+        if seg == 0.0:
+            fail(index(path, j + 1), "repeats the previous point (zero-length segment)")
+    return points

@@ -38,7 +38,8 @@ def field_maps(d0, kind: str):
     """``N0`` at the quadrature points of rule ``kind`` for one element: (G, 6, 12)."""
     points, _ = RULES[kind]
     P = element.strain_map(d0)
-    return jnp.stack([element.velocity_field_map(float(x), d0, P) for x in points])
+    # vmapped over the points (a Python loop would trace the map once per point)
+    return jax.vmap(lambda x: element.velocity_field_map(x, d0, P))(jnp.asarray(points))
 
 
 def mass_matrix(maps, length, inertia, kind: str):

@@ -23,6 +23,8 @@ time, log-log).
 """
 from __future__ import annotations
 
+import functools
+
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -353,23 +355,23 @@ def plot_work_precision(series, *, ax=None, title=None, xlabel="wall time [s]",
 
 # -------------------------------------------------------------------- Result conveniences
 
-_SAMPLERS: dict = {}
+@functools.lru_cache(maxsize=8)
+def _samplers(samples_per_element: int):
+    """Jitted single and time-batched shape samplers (a few kept, not one per call)."""
+    import jax
+
+    from .kinematics import sample_shape
+
+    one = lambda Ri, pi: sample_shape(Ri, pi, samples_per_element)  # noqa: E731
+    return jax.jit(one), jax.jit(jax.vmap(one))
 
 
 def sample_result(result, rod, samples_per_element=6):
     """Helical interpolation (seed eq. 27) of ``rod`` in a :class:`simsoft_jax.Result`:
     ``(positions, rotations)`` of shapes (M, 3), (M, 3, 3) for a static result or
     (T, M, 3), (T, M, 3, 3) for a dynamic one, ``M = elements * samples_per_element + 1``."""
-    import jax
-
-    from .kinematics import sample_shape
-
     R, p = result.rotations(rod), result.positions(rod)
-    key = samples_per_element
-    if key not in _SAMPLERS:
-        one = lambda Ri, pi: sample_shape(Ri, pi, samples_per_element)  # noqa: E731
-        _SAMPLERS[key] = (jax.jit(one), jax.jit(jax.vmap(one)))
-    single, batched = _SAMPLERS[key]
+    single, batched = _samplers(int(samples_per_element))
     Rs, ps = (single if p.ndim == 2 else batched)(R, p)
     return np.asarray(ps), np.asarray(Rs)
 

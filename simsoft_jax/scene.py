@@ -19,10 +19,10 @@ from typing import Any
 import numpy as np
 
 from ._validate import (SpecBase, check_keys, choice, fail, index, integer, join, matrix,
-                        number, plain, positive, prefixed, proper_rotations, read_table,
+                        number, plain, polyline, positive, prefixed, read_table,
                         readonly, require, rodrigues, rotation_vector, string, table,
                         toml_document, vector)
-from .geometry import chords
+from .scene_initial import parse_initial
 from .materials import BUILTIN_MATERIALS, Material, get_material
 from .scene_specs import (ConstraintSpec, GeometrySpec, InitialVelocitySpec, LoadSpec,
                           ProfileSpec, RodSpec, SegmentSpec, SolverSettings)
@@ -88,7 +88,6 @@ _STIFFNESS_KEYS = ("EA", "GAy", "GAz", "GJ", "EIy", "EIz")
 _INERTIA_KEYS = ("rhoA", "rhoJ", "rhoIy", "rhoIz")
 _GEOMETRY_KEYS = {"straight": ("length",), "arc": ("radius", "angle_deg"),
                   "helix": ("radius", "pitch", "turns"), "polyline": ("points",)}
-_INITIAL_KEYS = ("points", "rotations", "result", "time")
 _PROFILE_KEYS = {"constant": (), "ramp": ("t0", "t1"), "smoothstep": ("t0", "t1"),
                  "linear": ("rate",), "table": ("t", "scale", "file")}
 
@@ -295,151 +294,12 @@ def _parse_rod(r: dict, path: str, materials: dict[str, Material],
 
     initial = {}
     if "initial" in r:
-        initial = _parse_initial(r["initial"], join(path, "initial"), name, elements + 1,
+        initial = parse_initial(r["initial"], join(path, "initial"), name, elements + 1,
                                  position, rotation, base_dir or Path.cwd())
 
     return RodSpec(name=name, **props, elements=elements, geometry=geometry,
                    base_position=readonly(position), base_rotation=readonly(rotation),
                    segments=segments, **initial)
-
-
-def _parse_initial(value: Any, path: str, rod: str, nodes: int, base_position: np.ndarray,
-                   base_rotation: np.ndarray, base_dir: Path) -> dict:
-    """``initial``: points (+ rotations), base frame, or a restart from a saved result.
-
-    Returns the RodSpec fields ``initial_points`` (P,3), ``initial_rotations`` (nodes,3,3)
-    and ``initial_velocities`` (nodes,6), all in the rod's base frame (velocities are body
-    velocities, frame-free). Points count == nodes: the nodes exactly; otherwise a polyline.
-    """
-    init = table(value, path)
-    check_keys(init, path, _INITIAL_KEYS)
-    if "result" in init:
-        for key in ("points", "rotations"):
-            if key in init:
-                fail(join(path, key), "give either result (a restart) or points, not both")
-        return _parse_restart(init, path, rod, nodes, base_position, base_rotation, base_dir)
-    if "time" in init:
-        fail(join(path, "time"), "only goes with result (the saved time to restart from)")
-    ppath = join(path, "points")
-    points = _polyline(require(init, path, "points"), ppath)
-    rotations = None
-    if "rotations" in init:
-        rpath = join(path, "rotations")
-        if len(points) != nodes:
-            fail(rpath, f"needs exactly one point per node ({nodes}) in {ppath}; the "
-                 f"{len(points)} points given are a polyline, resampled to the nodes")
-        rotations = proper_rotations(init["rotations"], rpath)
-        if len(rotations) != nodes:
-            fail(rpath, f"must have one rotation per node ({nodes}), got {len(rotations)}")
-    elif len(points) == nodes:  # node tangents from chords p[i+1] - p[i-1]
-        for i, c in enumerate(chords(points)):
-            if not np.any(c):
-                fail(index(ppath, i + 1), f"equals {ppath}[{i - 1}]: node {i} has no tangent "
-                     "(chord of its neighbours is zero); give initial.rotations")
-    return dict(initial_points=readonly(points), initial_rotations=readonly(rotations))
-
-
-def _parse_restart(init: dict, path: str, rod: str, nodes: int, base_position: np.ndarray,
-                   base_rotation: np.ndarray, base_dir: Path) -> dict:
-    """``initial = { result = "file", time = t }``: the saved state of the rod ``rod``."""
-    rpath, tpath = join(path, "result"), join(path, "time")
-    name = string(init["result"], rpath)
-    file = Path(name) if Path(name).is_absolute() else base_dir / name
-    saved = _read_result(file, rpath)
-    init["result"] = str(file.absolute())  # raw / to_dict stay valid from any folder
-    if rod not in saved["rods"]:
-        fail(rpath, f"{file.name} has no rod named {rod!r} "
-             f"(it has: {', '.join(saved['rods']) or 'none'})")
-    entry = saved["rods"][rod]
-    dynamic = saved["time"] is not None
-    lead = (len(saved["time"]),) if dynamic else ()
-    velocities = entry.get("velocities") if dynamic else None
-    for key, shape in (("positions", (3,)), ("rotations", (3, 3)), ("velocities", (6,))):
-        arr = entry.get(key)
-        if arr is None:
-            if key != "velocities":
-                fail(rpath, f"{file.name}: rods.{rod}.{key} missing")
-            continue
-        if arr.ndim != len(lead) + 1 + len(shape) or arr.shape[:len(lead)] != lead \
-                or arr.shape[len(lead) + 1:] != shape:
-            fail(rpath, f"{file.name}: rods.{rod}.{key} has shape {arr.shape}, expected "
-                 f"{(*lead, nodes, *shape)}")
-        if arr.shape[len(lead)] != nodes:
-            fail(rpath, f"{file.name}: rod {rod!r} has {arr.shape[len(lead)]} nodes, this "
-                 f"scene's rod has {nodes} (the element counts must match)")
-        if not np.all(np.isfinite(arr)):
-            fail(rpath, f"{file.name}: rods.{rod}.{key} holds non-finite values")
-    positions, rotations = entry["positions"], entry["rotations"]
-    where = ""
-    if dynamic:
-        times = saved["time"]
-        k = len(times) - 1
-        if "time" in init:
-            t = number(init["time"], tpath)
-            scale = max(abs(t), float(np.abs(times).max()))
-            k = int(np.argmin(np.abs(times - t)))
-            if abs(times[k] - t) > 1e-9 * scale:
-                fail(tpath, f"no state saved at t = {t:g} s in {file.name} (saved: "
-                     f"{len(times)} times from {times[0]:g} to {times[-1]:g} s)")
-        positions, rotations = positions[k], rotations[k]
-        velocities = None if velocities is None else velocities[k]
-        where = f" at t = {times[k]:g} s"
-    elif "time" in init:
-        fail(tpath, f"{file.name} is a static result (no time axis); remove time")
-    try:
-        rotations = proper_rotations(rotations.tolist(), f"rods.{rod}.rotations")
-    except ValueError as err:
-        fail(rpath, f"{file.name}{where}: {err}")
-    Rb, pb = np.asarray(base_rotation, float), np.asarray(base_position, float)
-    return dict(initial_points=readonly((positions - pb) @ Rb),
-                initial_rotations=readonly(np.einsum("ji,njk->nik", Rb, rotations)),
-                initial_velocities=readonly(velocities))
-
-
-def _read_result(file: Path, path: str) -> dict:
-    """A result file of ``Result.save`` (.json or .npz) -> ``{"time": (T,) or None,
-    "rods": {name: {"positions", "rotations"[, "velocities"]: arrays}}}``."""
-    suffix = file.suffix.lower()
-    if suffix not in (".json", ".npz"):
-        fail(path, f"must name a .json or .npz result file (Result.save), got {file.name!r}")
-    try:
-        if suffix == ".json":
-            data = json.loads(file.read_text(encoding="utf-8"))
-            if not isinstance(data, dict) or not isinstance(data.get("rods"), dict):
-                fail(path, f"{file.name}: not a result file (no rods table)")
-            kind, time = data.get("kind"), data.get("time")
-            rods = {}
-            for rod, entry in data["rods"].items():
-                if not isinstance(entry, dict):
-                    fail(path, f"{file.name}: rods.{rod} must be a table")
-                rods[rod] = {key: np.asarray(entry[key], dtype=float)
-                             for key in ("positions", "rotations", "velocities")
-                             if key in entry}
-        else:
-            with np.load(file, allow_pickle=False) as z:
-                kind = str(z["kind"]) if "kind" in z.files else None
-                time = z["time"] if "time" in z.files else None
-                rods = {}
-                for key in z.files:
-                    rod, _, field = key.rpartition("/")
-                    if rod and field in ("positions", "rotations", "velocities"):
-                        rods.setdefault(rod, {})[field] = np.asarray(z[key], dtype=float)
-    except OSError as err:
-        fail(path, f"cannot read {str(file)!r}: {err.strerror or err}")
-    except (ValueError, TypeError) as err:  # bad JSON / npz, ragged arrays
-        if str(err).startswith(path + ":"):
-            raise
-        fail(path, f"{file.name}: not a readable result file: {err}")
-    if time is not None:
-        time = np.asarray(time, dtype=float)
-        if time.ndim != 1 or not len(time) or not np.all(np.isfinite(time)):
-            fail(path, f"{file.name}: time must be a non-empty list of finite numbers")
-    if kind is not None and kind not in ("static", "dynamic"):
-        fail(path, f"{file.name}: kind must be 'static' or 'dynamic', got {kind!r}")
-    if kind is not None and (kind == "dynamic") != (time is not None):
-        fail(path, f"{file.name}: a {kind} result with" + ("out a" if time is None else " a")
-             + " time axis")
-    return {"time": time, "rods": rods}
 
 
 def _rod_material(value: Any, path: str, materials: dict[str, Material]) -> Material:
@@ -465,22 +325,13 @@ def _parse_section(value: Any, path: str) -> Section:
         return build(**args)
 
 
-def _polyline(value: Any, path: str) -> np.ndarray:
-    points = matrix(value, path, 3, min_rows=2)
-    lengths = np.linalg.norm(np.diff(points, axis=0), axis=1)
-    for j, seg in enumerate(lengths):
-        if seg == 0.0:
-            fail(index(path, j + 1), "repeats the previous point (zero-length segment)")
-    return points
-
-
 def _parse_geometry(value: Any, path: str) -> GeometrySpec:
     g = table(value, path)
     kind = choice(require(g, path, "kind"), join(path, "kind"), tuple(_GEOMETRY_KEYS))
     keys = _GEOMETRY_KEYS[kind]
     check_keys(g, path, ("kind", *keys), required=keys)
     if kind == "polyline":
-        return GeometrySpec(kind, points=readonly(_polyline(g["points"], join(path, "points"))))
+        return GeometrySpec(kind, points=readonly(polyline(g["points"], join(path, "points"))))
     if kind == "straight":
         return GeometrySpec(kind, length=positive(g["length"], join(path, "length")))
     radius = positive(g["radius"], join(path, "radius"))

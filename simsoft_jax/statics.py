@@ -314,8 +314,9 @@ def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
 @partial(jax.custom_jvp, nondiff_argnums=(0,))
 def _implicit(tangent: str, model: Model, converged, R, p):
     """Identity on a converged equilibrium; its derivative is the IFT one (see module doc).
-    Where the solve did not converge the derivative is NaN: there is no equilibrium to
-    differentiate, and a finite number would be wrong."""
+    Held dofs follow the start frames ``model.R0, model.p0`` (a clamp holds its node
+    there). Where the solve did not converge the derivative is NaN: there is no
+    equilibrium to differentiate, and a finite number would be wrong."""
     return R, p
 
 
@@ -323,9 +324,22 @@ def _implicit(tangent: str, model: Model, converged, R, p):
 def _implicit_jvp(tangent, primals, tangents):
     model, converged, R, p = primals
     dmodel = tangents[0]
-    _, dr = jax.jvp(lambda m: residual(m, R, p, 1.0), (model,), (dmodel,))
+    held = 1.0 - model.structure.free_mask()
+    # body-frame motion of the held dofs: translations R^T dp0, rotations vee(R^T dR0)
+    dA = jnp.einsum("nji,njk->nik", R, dmodel.R0)
+    moved = held * jnp.concatenate([jnp.einsum("nji,nj->ni", R, dmodel.p0),
+                                    0.5 * jnp.stack([dA[:, 2, 1] - dA[:, 1, 2],
+                                                     dA[:, 0, 2] - dA[:, 2, 0],
+                                                     dA[:, 1, 0] - dA[:, 0, 1]], axis=1)], axis=1)
+
+    def perturbed(m, x):
+        Rx, px = _update(R, p, x)
+        return residual(m, Rx, px, 1.0)
+
+    _, dr = jax.jvp(perturbed, (model, jnp.zeros_like(moved)), (dmodel, moved))
     _, blocks = residual_and_tangent(model, R, p, 1.0, tangent)
-    dxi = implicit_solve(blocks, -dr) * jnp.where(converged, 1.0, jnp.nan)
+    dxi = jnp.where(held > 0, moved, implicit_solve(blocks, -dr))
+    dxi = dxi * jnp.where(converged, 1.0, jnp.nan)
     # d/dt [R exp(t dxi)] at t = 0: (R skew(dxi_w), R dxi_u)
     dR = jnp.einsum("nij,njk->nik", R, jax.vmap(lie.skew)(dxi[:, 3:]))
     dp = jnp.einsum("nij,nj->ni", R, dxi[:, :3])

@@ -5,6 +5,7 @@ import numpy as np
 
 import simsoft_jax as sj
 from simsoft_jax import _xla
+from simsoft_jax.statics import _solve_static, as_traced
 
 
 def test_compiler_options_are_a_dict_accepted_by_this_jaxlib():
@@ -26,11 +27,12 @@ def test_solve_static_matches_plain_jit():
         "loads": [{"kind": "force", "rod": "rod", "node": -1, "vector": [0.0, 1.5, 4.0]}]})
     model = sj.build_model(scene)
     ours = sj.solve_static(model)
-    plain = jax.jit(sj.solve_static.__wrapped__, static_argnames="settings")(model)
+    settings = as_traced(sj.StaticSettings())
+    plain = jax.jit(_solve_static.__wrapped__)(model, settings)
     assert bool(ours.converged) and bool(plain.converged)
     assert int(ours.iterations) == int(plain.iterations)
     np.testing.assert_allclose(np.asarray(ours.p), np.asarray(plain.p), rtol=0, atol=1e-13)
-    assert sj.solve_static.lower(model).compile() is not None
+    assert _solve_static.lower(model, settings).compile() is not None
     # inside a user's jit (JAX takes compile options on the outermost jit only)
     nested = jax.jit(lambda m: sj.solve_static(m).p)(model)
     np.testing.assert_allclose(np.asarray(nested), np.asarray(plain.p), rtol=0, atol=1e-13)
