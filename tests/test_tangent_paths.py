@@ -25,8 +25,10 @@ def deformed(model, seed, size=0.05):
 def test_static_tangent_paths_agree_and_match_finite_differences():
     model = sj.build_model(sj.Scene.from_dict(static_scene()))
     R, p = deformed(model, 0)
-    r1, b1 = assembly.residual_and_tangent(model, R, p, 0.7, "closed_form")
-    r2, b2 = assembly.residual_and_tangent(model, R, p, 0.7, "autodiff")
+    r1, b1 = jax.jit(assembly.residual_and_tangent, static_argnums=4)(model, R, p, 0.7,
+                                                                      "closed_form")
+    r2, b2 = jax.jit(assembly.residual_and_tangent, static_argnums=4)(model, R, p, 0.7,
+                                                                      "autodiff")
     K1, K2 = np.asarray(linalg.dense(b1)), np.asarray(linalg.dense(b2))
     np.testing.assert_allclose(np.asarray(r1), np.asarray(r2), rtol=0, atol=1e-12)
     np.testing.assert_allclose(K1, K2, rtol=0, atol=1e-10 * np.abs(K1).max())
@@ -36,17 +38,21 @@ def test_static_tangent_paths_agree_and_match_finite_differences():
     x = rng.standard_normal(K1.shape[0]).reshape(-1, 6) * mask.reshape(-1, 6)
     eps = 1e-6
 
-    def res(e):
+    @jax.jit
+    def residual_along(e):
         Rx, px = jax.vmap(lie.compose_exp)(R, p, e * jnp.asarray(x))
-        return np.asarray(assembly.residual(model, Rx, px, 0.7)).ravel()
+        return assembly.residual(model, Rx, px, 0.7)
+
+    def res(e):
+        return np.asarray(residual_along(e)).ravel()
 
     fd = (res(eps) - res(-eps)) / (2 * eps)
     np.testing.assert_allclose((K1 @ x.ravel())[mask], fd[mask], rtol=0,
                                atol=1e-6 * np.abs(fd).max())
 
 
-@pytest.mark.parametrize("inertia", ["consistent", "lumped"])
-@pytest.mark.parametrize("sliding", [False, True], ids=["drive", "sliding-drive"])
+@pytest.mark.parametrize("inertia, sliding", [("consistent", False), ("lumped", True)],
+                         ids=["consistent-drive", "lumped-sliding-drive"])
 def test_dynamic_iteration_matrix_paths_agree(inertia, sliding):
     """Damped rod, all load kinds, a driven (or sliding) base: residual and iteration
     matrix ``M beta' + C gamma' + K T(w)`` of both paths agree."""
@@ -63,21 +69,26 @@ def test_dynamic_iteration_matrix_paths_agree(inertia, sliding):
     beta_p, gamma_p = iteration_factors(0.8, 0.01)
     inert = element_inertia(model)
     slide = drives.slide_maps(model, R, w) if sliding else None
-    out = [residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p, slide,
-                                         tangent) for tangent in ("closed_form", "autodiff")]
+    matrix = jax.jit(residual_and_iteration_matrix, static_argnums=10)
+    out = [matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p, slide, tangent)
+           for tangent in ("closed_form", "autodiff")]
     (r1, b1), (r2, b2) = out
     S1, S2 = np.asarray(linalg.dense(b1)), np.asarray(linalg.dense(b2))
     np.testing.assert_allclose(np.asarray(r1), np.asarray(r2), rtol=0, atol=1e-10)
     np.testing.assert_allclose(S1, S2, rtol=0, atol=1e-10 * np.abs(S1).max())
 
 
-def test_whole_solves_agree_on_both_paths():
-    """Static equilibrium and a 30-step rollout give the same answer on both paths."""
+def test_static_solves_agree_on_both_paths():
     model = sj.build_model(sj.Scene.from_dict(static_scene()))
     eqs = [sj.solve_static(model, sj.StaticSettings(tangent=t)) for t in ("closed_form",
                                                                           "autodiff")]
     assert all(bool(e.converged) for e in eqs)
     np.testing.assert_allclose(eqs[0].p, eqs[1].p, rtol=0, atol=1e-11)
+
+
+@pytest.mark.slow
+def test_rollouts_agree_on_both_paths():
+    """A 30-step rollout of the damped, driven rod gives the same answer on both paths."""
     model = sj.build_model(sj.Scene.from_dict(dynamic_scene()))
     trajs = [sj.simulate(model, sj.DynamicSettings(dt=0.01, steps=30, tangent=t))
              for t in ("closed_form", "autodiff")]
