@@ -59,10 +59,10 @@ def run(quick: bool, out):
     repeats = 3 if quick else 5
     static, static_diff = static_rows(repeats)
     dynamic, dynamic_diff = dynamic_rows(repeats, quick)
-    columns = [("scene", "scene", "{}"), ("tangent", "tangent", "{}"),
-               ("compile_s", "compile s", "{:.2f}"), ("wall_ms", "run ms", "{:.1f}"),
-               ("iterations", "Newton its", "{}"), ("converged", "converged", "{}")]
-    print(common.table(static + dynamic, columns, "tangent paths (closed_form vs autodiff)"))
+    columns = [("scene", "scene", "s"), ("tangent", "tangent", "s"),
+               ("compile_s", "compile s", ".2f"), ("wall_ms", "run ms", ".1f"),
+               ("iterations", "Newton its", "d"), ("converged", "converged", "")]
+    common.table(static + dynamic, columns, "tangent paths (closed_form vs autodiff)")
     print(f"largest tip difference between the paths: static {static_diff:.1e} m; "
           + ", ".join(f"{k.split('.')[0]} {v:.1e} m" for k, v in dynamic_diff.items()))
     data = dict(rows=static + dynamic, static_difference=static_diff,
