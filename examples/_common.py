@@ -75,9 +75,9 @@ def element_twists(result, rod: str):
     ``rod`` at every saved time of a dynamic Result, (T, E, 6)."""
     import jax
 
-    import simsoft_jax as sj
+    from simsoft_jax import kinematics
 
-    twists = jax.jit(jax.vmap(sj.kinematics.element_twists))
+    twists = jax.jit(jax.vmap(kinematics.element_twists))
     return np.asarray(twists(result.rotations(rod), result.positions(rod)))
 
 

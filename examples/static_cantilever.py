@@ -15,6 +15,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import simsoft_jax as sj  # noqa: E402
+from simsoft_jax import kinematics  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 
@@ -24,7 +25,7 @@ def plot(result, path):
     ax = fig.add_subplot(projection="3d")
     for info in result.model.structure.rods:
         R, p = result.rotations(info.name), result.positions(info.name)
-        _, curve = sj.kinematics.sample_shape(R, p, 8)
+        _, curve = kinematics.sample_shape(R, p, 8)
         curve = np.asarray(curve)
         ax.plot(*curve.T, lw=2, label=info.name)
         ax.scatter(*p.T, s=8)
