@@ -12,6 +12,7 @@ import copy
 import dataclasses
 import json
 import sys
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -74,7 +75,8 @@ class Scene(SpecBase):
 _TOP_KEYS = ("name", "solver", "gravity", "materials", "rods", "constraints", "loads",
              "initial_velocity")
 _SOLVER_KEYS = ("kind", "tolerance", "max_iterations", "load_steps", "t_end", "dt",
-                "rho_inf", "save_every", "inertia", "tangent")
+                "rho_inf", "save_every", "inertia", "tangent", "max_steps")
+MAX_STEPS = 1_000_000      # time steps a dynamic run may take unless solver.max_steps says more
 _MATERIAL_KEYS = ("name", "E", "G", "nu", "density", "viscosity")
 _ROD_KEYS = ("name", "material", "section", "shear_coefficients", "stiffness", "inertia",
              "elements", "geometry", "base", "initial", "segments")
@@ -128,6 +130,8 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
     loads = tuple(_parse_load(item, index("loads", i), rods, base_dir)
                   for i, item in enumerate(_array_of_tables(raw, "loads")))
     velocities = _parse_velocities(_array_of_tables(raw, "initial_velocity"), rods)
+    if solver.kind == "dynamic":
+        _warn_short_features(loads, constraints, solver.dt)
     if solver.kind == "static":  # rigid-body motion left free makes statics singular
         for i, rod in enumerate(rods.values()):
             kinds = [c.kind for c in constraints if c.rod == rod.name]
@@ -139,6 +143,29 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
                  source=None, raw=raw)
 
 
+def _warn_short_features(loads: tuple, constraints: tuple, dt: float) -> None:
+    """Warn (``UserWarning``, naming the key) about time laws with features shorter than
+    the time step ``dt`` (s): a ramp or smoothstep with ``t1 - t0 < dt``, table or drive
+    samples closer than ``dt``. The steps sample such a law only at their own times, so a
+    pulse narrower than dt may be missed or its size misjudged."""
+    for i, load in enumerate(loads):
+        prof, path = load.profile, join(index("loads", i), "profile")
+        if prof.kind in ("ramp", "smoothstep") and prof.t1 - prof.t0 < dt:
+            warnings.warn(f"{path}: rises in t1 - t0 = {prof.t1 - prof.t0:g} s, less than "
+                          f"solver.dt = {dt:g} s; the steps sample it coarsely (reduce dt)",
+                          stacklevel=3)
+        elif prof.kind == "table" and len(prof.t) > 1 and np.diff(prof.t).min() < dt:
+            warnings.warn(f"{path}.t: samples {np.diff(prof.t).min():g} s apart, less than "
+                          f"solver.dt = {dt:g} s; a pulse narrower than dt may be missed "
+                          "(reduce dt)", stacklevel=3)
+    for i, c in enumerate(constraints):
+        if c.kind == "drive" and len(c.times) > 1 and np.diff(c.times).min() < dt:
+            warnings.warn(f"{index('constraints', i)}.times: samples "
+                          f"{np.diff(c.times).min():g} s apart, less than solver.dt = "
+                          f"{dt:g} s; the steps sample the drive coarsely (reduce dt)",
+                          stacklevel=3)
+
+
 def _parse_solver(value: Any) -> SolverSettings:
     s = table(value, "solver")
     check_keys(s, "solver", _SOLVER_KEYS, required=("kind",))
@@ -146,6 +173,8 @@ def _parse_solver(value: Any) -> SolverSettings:
     out: dict[str, Any] = {"kind": kind}
     if "tolerance" in s:
         out["tolerance"] = positive(s["tolerance"], "solver.tolerance")
+        if out["tolerance"] >= 1.0:
+            fail("solver.tolerance", f"must be < 1 (a relative tolerance), got {s['tolerance']}")
     for key in ("max_iterations", "load_steps", "save_every"):
         if key in s:
             out[key] = integer(s[key], join("solver", key), minimum=1)
@@ -156,6 +185,11 @@ def _parse_solver(value: Any) -> SolverSettings:
             require(s, "solver", key)
     if "dt" in out and "t_end" in out and out["dt"] > out["t_end"]:
         fail("solver.dt", f"must be <= solver.t_end ({out['t_end']}), got {out['dt']}")
+    limit = integer(s.get("max_steps", MAX_STEPS), "solver.max_steps", minimum=1)
+    if "dt" in out and "t_end" in out and out["t_end"] / out["dt"] > limit:
+        fail("solver.dt", f"t_end / dt = {out['t_end'] / out['dt']:.4g} time steps, more "
+             f"than solver.max_steps ({limit}); increase dt, or raise solver.max_steps "
+             "to allow the run (its time and memory grow with the steps)")
     if "rho_inf" in s:
         out["rho_inf"] = number(s["rho_inf"], "solver.rho_inf")
         if not 0.0 <= out["rho_inf"] <= 1.0:
