@@ -30,6 +30,7 @@ from .scene_specs import (ConstraintSpec, GeometrySpec, InitialVelocitySpec, Loa
                           ProfileSpec, RodSpec, SegmentSpec, SolverSettings)
 from .sections import (Section, circle, custom_inertia, custom_stiffness, rectangle,
                        semicircle, tube)
+from .supports import AXES, stress_free_frames, unheld_message
 
 __all__ = ["SolverSettings", "GeometrySpec", "RodSpec", "ConstraintSpec", "ProfileSpec",
            "LoadSpec", "InitialVelocitySpec", "Scene", "load_scene", "save_scene"]
@@ -149,10 +150,11 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
                      "\"dynamic\"")
     if solver.kind == "static":  # rigid-body motion left free makes statics singular
         for i, rod in enumerate(rods.values()):
-            kinds = [c.kind for c in constraints if c.rod == rod.name]
-            if not {"clamp", "drive"} & set(kinds) and kinds.count("pin") < 2:
-                fail("constraints", f"rod {rod.name!r} (rods[{i}]) is free to move as a "
-                     "rigid body; a static solve needs a clamp, a drive or two pins on it")
+            held = [c for c in constraints if c.rod == rod.name]
+            frames = stress_free_frames(rod, {c.node for c in held})
+            message = unheld_message(rod.name, i, held, frames, rod.geometry.arc_length)
+            if message:
+                raise ValueError(message)
     return Scene(name=name, solver=solver, gravity=gravity, rods=tuple(rods.values()),
                  constraints=constraints, loads=loads, initial_velocity=velocities,
                  source=None, raw=raw)
@@ -623,9 +625,12 @@ def _parse_constraints(items: list[dict], rods: dict[str, RodSpec]) -> tuple:
     taken: dict[tuple[str, int], str] = {}
     for i, c in enumerate(items):
         path = index("constraints", i)
-        kind = choice(require(c, path, "kind"), join(path, "kind"), ("clamp", "pin", "drive"))
-        extra = ("times", "displacement", "rotation", "slides_along") if kind == "drive" else ()
-        check_keys(c, path, ("kind", "rod", "node", "s", *extra), required=("rod",))
+        kind = choice(require(c, path, "kind"), join(path, "kind"),
+                      ("clamp", "pin", "hinge", "drive"))
+        extra = {"drive": ("times", "displacement", "rotation", "slides_along"),
+                 "hinge": ("axis",)}.get(kind, ())
+        check_keys(c, path, ("kind", "rod", "node", "s", *extra),
+                   required=("rod", "axis") if kind == "hinge" else ("rod",))
         rod = _rod_of(c, path, rods)
         node = _node(c, path, rod)
         where = join(path, "node" if "node" in c else "s")
@@ -636,6 +641,8 @@ def _parse_constraints(items: list[dict], rods: dict[str, RodSpec]) -> tuple:
         fields: dict[str, Any] = {}
         if kind == "drive":
             fields = _parse_drive(c, path)
+        elif kind == "hinge":
+            fields = {"axis": choice(c["axis"], join(path, "axis"), AXES)}
         out.append(ConstraintSpec(kind=kind, rod=rod.name, node=node, **fields))
     return tuple(out)
 
