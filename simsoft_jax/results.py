@@ -189,8 +189,9 @@ def run(scene, progress=None) -> Result:
     """Solve a scene (a :class:`Scene`, a dict or a path to a .toml/.json file).
 
     Static scenes: :func:`~simsoft_jax.statics.solve_static` at full load. Dynamic scenes:
-    :func:`~simsoft_jax.dynamics.simulate` from t = 0 for round(t_end/dt) steps, keeping
-    every ``save_every``-th state, in compiled chunks; ``progress(t, t_end)`` is called
+    :func:`~simsoft_jax.dynamics.rollout` from t = 0 to exactly t_end (steps of dt,
+    shorter closing steps where t_end/dt or save_every does not divide), keeping every
+    ``save_every``-th state and the last, in compiled chunks; ``progress(t, t_end)`` is called
     after each chunk. Compilation is cached per model structure.
     """
     if isinstance(scene, (str, Path)):

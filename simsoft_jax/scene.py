@@ -627,8 +627,8 @@ def _parse_constraints(items: list[dict], rods: dict[str, RodSpec]) -> tuple:
         path = index("constraints", i)
         kind = choice(require(c, path, "kind"), join(path, "kind"),
                       ("clamp", "pin", "hinge", "drive"))
-        extra = {"drive": ("times", "displacement", "rotation", "slides_along"),
-                 "hinge": ("axis",)}.get(kind, ())
+        extra = (("times", "displacement", "rotation", "slides_along") if kind == "drive"
+                 else ("axis",) if kind == "hinge" else ())
         check_keys(c, path, ("kind", "rod", "node", "s", *extra),
                    required=("rod", "axis") if kind == "hinge" else ("rod",))
         rod = _rod_of(c, path, rods)
