@@ -170,17 +170,17 @@ def _warn_short_features(loads: tuple, constraints: tuple, dt: float) -> None:
         if prof.kind in ("ramp", "smoothstep") and prof.t1 - prof.t0 < dt:
             warnings.warn(f"{path}: rises in t1 - t0 = {prof.t1 - prof.t0:g} s, less than "
                           f"solver.dt = {dt:g} s; the steps sample it coarsely (reduce dt)",
-                          stacklevel=3)
+                          stacklevel=4)
         elif prof.kind == "table" and len(prof.t) > 1 and np.diff(prof.t).min() < dt:
             warnings.warn(f"{path}.t: samples {np.diff(prof.t).min():g} s apart, less than "
                           f"solver.dt = {dt:g} s; a pulse narrower than dt may be missed "
-                          "(reduce dt)", stacklevel=3)
+                          "(reduce dt)", stacklevel=4)
     for i, c in enumerate(constraints):
         if c.kind == "drive" and len(c.times) > 1 and np.diff(c.times).min() < dt:
             warnings.warn(f"{index('constraints', i)}.times: samples "
                           f"{np.diff(c.times).min():g} s apart, less than solver.dt = "
                           f"{dt:g} s; the steps sample the drive coarsely (reduce dt)",
-                          stacklevel=3)
+                          stacklevel=4)
 
 
 def _check_loads_on_held_nodes(items: list, loads: tuple, constraints: tuple) -> None:
