@@ -117,3 +117,28 @@ def test_load_by_arc_length_on_a_held_node_is_reported():
     with pytest.raises(ValueError, match=r"^loads\[0\]\.s: .* which a pin holds: the force"):
         Scene.from_dict(scene(straight, kind="dynamic", constraints=pins,
                               loads=[{**force, "s": 0.99}]))
+
+
+@pytest.mark.parametrize("rotation, key, message", [
+    ([0.0, 1e300, 0.0], "rods[0].base.rotation", "rotation angle (its length) must be at most 1e+06 rad"),
+    ([8e5, 8e5, 0.0], "rods[0].base.rotation", "rotation angle (its length) must be at most 1e+06 rad"),
+    ({"axis": [0, 0, 1], "angle_deg": 3e301}, "rods[0].base.rotation.angle_deg",
+     "must be at most 5.73e+07 in size"),
+])
+def test_huge_rotation_angles_are_rejected_by_key(rotation, key, message):
+    """Rotation vectors whose length overflows (or has no digits left below one turn)
+    used to raise a bare 'math domain error'."""
+    d = scene({"kind": "straight", "length": 1.0})
+    d["rods"][0]["base"] = {"rotation": rotation}
+    with pytest.raises(ValueError) as err:
+        Scene.from_dict(d)
+    assert str(err.value).startswith(f"{key}: {message}")
+
+
+def test_rotation_axis_with_huge_components_is_normalised():
+    """An axis (1e300, 1e300, 0) is the direction (1, 1, 0)/sqrt(2): a quarter turn about
+    it maps x to (1/2, 1/2, -1/sqrt(2))."""
+    d = scene({"kind": "straight", "length": 1.0})
+    d["rods"][0]["base"] = {"rotation": {"axis": [1e300, 1e300, 0.0], "angle_deg": 90.0}}
+    R = Scene.from_dict(d).rods[0].base_rotation
+    np.testing.assert_allclose(R[:, 0], [0.5, 0.5, -np.sqrt(0.5)], atol=1e-15)
