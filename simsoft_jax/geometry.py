@@ -172,14 +172,30 @@ def element_turns(geometry, elements):
     return np.where(degenerate, np.pi, np.arccos(cos))
 
 
+def _constant_strain(geometry):
+    """Reference strain f0 (6,) of a straight, arc or helix geometry."""
+    if geometry.kind == "straight":
+        return np.array([1.0, 0, 0, 0, 0, 0])
+    if geometry.kind == "arc":
+        return arc_strain(geometry.radius)
+    return helix_strain(geometry.radius, geometry.pitch)
+
+
+def frames_at(geometry, elements, nodes):
+    """Stress-free frames ``{node: (R, p)}`` (base frame) of the given nodes only (the
+    constant-strain shapes are evaluated at those nodes, not along the whole rod)."""
+    if geometry.kind == "polyline":
+        R, p = reference_frames(geometry, elements)
+        return {i: (R[i], p[i]) for i in nodes}
+    f0, ds = _constant_strain(geometry), geometry.arc_length / elements
+    return {i: (H[:3, :3], H[:3, 3]) for i in nodes for H in [_exp_se3_np(i * ds * f0)]}
+
+
 def element_chords(geometry, elements):
     """Distance (m) between the two end nodes of each element of the stress-free shape,
     (elements,). Straight, arc and helix have equal elements (one is computed)."""
     if geometry.kind == "polyline":
         p = resample_polyline(geometry.points, elements + 1)
         return np.linalg.norm(np.diff(p, axis=0), axis=1)
-    strain = {"straight": lambda: [1.0, 0, 0, 0, 0, 0],
-              "arc": lambda: arc_strain(geometry.radius),
-              "helix": lambda: helix_strain(geometry.radius, geometry.pitch)}[geometry.kind]()
-    _, p = constant_strain_frames(strain, geometry.arc_length / elements, 1)
+    _, p = constant_strain_frames(_constant_strain(geometry), geometry.arc_length / elements, 1)
     return np.full(elements, np.linalg.norm(p[1] - p[0]))

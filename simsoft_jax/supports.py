@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import reference_frames
+from .geometry import frames_at
 
 AXES = ("x", "y", "z")
 
@@ -106,6 +106,6 @@ def unheld_message(rod, index, constraints, frames, length) -> str | None:
 def stress_free_frames(rod, nodes):
     """World frames ``{node: (R, p)}`` of the given nodes of a RodSpec's stress-free
     shape (its geometry placed by its base)."""
-    R, p = reference_frames(rod.geometry, rod.elements)
     Rb, pb = np.asarray(rod.base_rotation, float), np.asarray(rod.base_position, float)
-    return {i: (Rb @ R[i], pb + Rb @ p[i]) for i in nodes}
+    return {i: (Rb @ R, pb + Rb @ p)
+            for i, (R, p) in frames_at(rod.geometry, rod.elements, nodes).items()}
