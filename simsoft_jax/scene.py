@@ -577,7 +577,9 @@ def _check_elements(geometry: GeometrySpec, elements: int, path: str) -> None:
         lengths = element_chords(geometry, elements)
         if lengths.min() <= 1e-9 * geometry.arc_length / elements:
             fail(path, f"element {int(np.argmin(lengths))} of {elements} has zero length "
-                 "(its two nodes coincide in the stress-free shape); use more elements")
+                 "(its two nodes coincide in the stress-free shape: the shape folds back "
+                 "onto itself, or its dimensions are too small to represent); use more "
+                 "elements or check the dimensions")
 
     if geometry.kind == "polyline":
         check_length()
