@@ -119,9 +119,9 @@ def test_hinged_pendulum_swings_about_its_axis():
     angular velocity w0: a compound pendulum, theta(t) = (w0 / W) sin(W t) with
     W^2 = (rhoA g L^2 / 2) / (rhoA L^3 / 3 + rhoIy L). At t_end = T/4 (not a multiple of
     dt: the run closes with shorter steps) the tip is at x = -L sin(w0 / W). Bending
-    (first frequency ~1400 rad/s against W = 5.4 rad/s, a ~1e-5 effect) and the scheme's
-    phase error (~1e-4 at 100 steps per quarter period, entering squared at the peak of
-    the sine) stay below 1e-5 (measured 1.7e-7)."""
+    (first frequency ~1400 rad/s against W = 5.4 rad/s: at most (5.4/1400)^2 = 1.5e-5)
+    and the scheme's phase error (~1e-4 at 100 steps per quarter period, entering squared
+    at the peak of the sine) bound the error well below 1e-4 (measured 1.7e-7)."""
     length, rho_a, rho_iy, g, w0 = 0.5, 0.1, 1e-4, 9.81, 0.01
     omega = np.sqrt(rho_a * g * length**2 / 2 / (rho_a * length**3 / 3 + rho_iy * length))
     t_end = np.pi / (2 * omega)
@@ -139,7 +139,7 @@ def test_hinged_pendulum_swings_about_its_axis():
     assert r.converged and r.time[-1] == t_end
     p, R = r.positions("p"), r.rotations("p")
     tip_x = -length * np.sin(w0 / omega)
-    assert abs(p[-1, -1, 0] / tip_x - 1) < 1e-5
+    assert abs(p[-1, -1, 0] / tip_x - 1) < 1e-4
     np.testing.assert_allclose(p[:, 0], 0.0, atol=1e-12)            # the hinge holds
     np.testing.assert_allclose(R[:, 0, :, 1], np.tile([0.0, 1.0, 0.0], (len(R), 1)),
                                atol=1e-12)                          # turns about y only
