@@ -64,6 +64,8 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
     Returns ``(Trajectory, compile_seconds)`` with all saved states concatenated.
     """
     _check_viscosity(model)
+    if not 0.0 < dt <= t_end:
+        raise ValueError(f"solver.dt: must be in (0, t_end = {t_end:g}], got {dt:g}")
     steps = step_count(t_end, dt)
     save_every = min(save_every, steps)
     total_saves = steps // save_every
