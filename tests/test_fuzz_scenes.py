@@ -13,6 +13,7 @@ Any other exception, a hang past the budget or a non-strict file fails the test.
 """
 import json
 import random
+import re
 import sys
 import time
 import warnings
@@ -130,7 +131,6 @@ def test_fuzzed_scenes_are_rejected_by_key_or_end_with_a_status(tmp_path):
                 warnings.simplefilter("ignore")
                 parsed = sj.Scene.from_dict(scene, base_dir=SCENES_DIR)
         except ValueError as err:
-            import re
             assert re.match(KEY_PATH, str(err)), f"{label}: message without key path: {err}"
             outcomes["rejected"] += 1
             continue
@@ -138,7 +138,6 @@ def test_fuzzed_scenes_are_rejected_by_key_or_end_with_a_status(tmp_path):
         try:
             result = sj.run(parsed)
         except ValueError as err:   # build-time checks (e.g. supports) name a key too
-            import re
             assert re.match(KEY_PATH, str(err)), f"{label}: message without key path: {err}"
             outcomes["rejected"] += 1
             continue
