@@ -164,20 +164,31 @@ def matrix(value: Any, path: str, cols: int = 3, min_rows: int = 1) -> np.ndarra
     return out
 
 
+MAX_ROTATION = 1e6  # rad: beyond it an angle has no digits left below one turn
+
+
 def rotation_vector(value: Any, path: str) -> np.ndarray:
-    """Rotation vector (radians) from ``[x, y, z]`` or ``{axis = [..], angle_deg = ..}``."""
+    """Rotation vector (radians) from ``[x, y, z]`` or ``{axis = [..], angle_deg = ..}``;
+    the angle must be at most MAX_ROTATION."""
     if isinstance(value, dict):
         check_keys(value, path, ("axis", "angle_deg"), required=("axis", "angle_deg"))
         axis = vector(value["axis"], join(path, "axis"))
-        norm = float(np.linalg.norm(axis))
+        norm = float(np.linalg.norm(axis / np.abs(axis).max())) if axis.any() else 0.0
         if norm == 0.0:
             fail(join(path, "axis"), "must not be the zero vector")
         angle = number(value["angle_deg"], join(path, "angle_deg"))
-        return axis / norm * math.radians(angle)
+        if abs(math.radians(angle)) > MAX_ROTATION:
+            fail(join(path, "angle_deg"), f"must be at most {math.degrees(MAX_ROTATION):.4g} "
+                 f"in size, got {angle}")
+        return axis / np.abs(axis).max() / norm * math.radians(angle)
     if not isinstance(value, (list, tuple)):
         fail(path, "must be a rotation vector [x, y, z] (radians) or "
                    f"{{axis = [..], angle_deg = ..}}, got {describe(value)}")
-    return vector(value, path)
+    out = vector(value, path)
+    if np.abs(out).max() > MAX_ROTATION or np.linalg.norm(out) > MAX_ROTATION:
+        fail(path, f"rotation angle (its length) must be at most {MAX_ROTATION:g} rad, got "
+             f"components up to {np.abs(out).max():g}")
+    return out
 
 
 def rodrigues(rotvec: np.ndarray) -> np.ndarray:

@@ -1,7 +1,8 @@
 """Command line: ``simsoft-jax run | validate | princeton | calibrate | bench``.
 
-* ``run SCENE -o OUT.json|.npz [--plot F.png] [--animate F.gif]``: solve a scene (exit 1
-  if not converged, 2 if invalid), with a progress line on stderr for dynamic runs;
+* ``run SCENE -o OUT.json|.npz [--force] [--plot F.png] [--animate F.gif]``: solve a
+  scene (exit 1 if not converged, 2 if the scene or the output path is invalid), with a
+  progress line on stderr for dynamic runs;
 * ``validate SCENE``: check a scene file without solving it;
 * ``princeton``: the 25 load cases of the Princeton beam, a results table and figures
   (seed Figs. 15-18 when ``--measurements`` are given);
@@ -20,11 +21,14 @@ import numpy as np
 
 
 def _run(args) -> int:
+    from .output import check_output
     from .results import run
     def progress(t, t_end):
         print(f"\r  t = {t:.4g} / {t_end:.4g} s", end="", file=sys.stderr, flush=True)
 
     try:
+        if args.output:  # before solving: a bad output path must not cost a solve
+            check_output(args.output, force=args.force)
         result = run(args.scene, progress=progress)
     except (ValueError, NotImplementedError) as err:
         print(f"error: {err}", file=sys.stderr)
@@ -32,7 +36,12 @@ def _run(args) -> int:
     if result.time is not None:
         print(file=sys.stderr)  # end the progress line
     if args.output:
-        result.save(args.output)
+        try:
+            result.save(args.output)
+        except OSError as err:
+            print(f"error: output: cannot write {args.output!r}: {err.strerror or err} "
+                  "(the old file, if any, is unchanged)", file=sys.stderr)
+            return 2
     if args.plot or args.animate:
         try:
             _figures(result, args.plot, args.animate)
@@ -178,7 +187,10 @@ def main(argv=None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
     p_run = sub.add_parser("run", help="solve a scene file and optionally write the result")
     p_run.add_argument("scene", help="scene file (.toml or .json)")
-    p_run.add_argument("-o", "--output", help="result file (.json or .npz)")
+    p_run.add_argument("-o", "--output", help="result file (.json or .npz); checked "
+                       "before solving, written atomically")
+    p_run.add_argument("--force", action="store_true",
+                       help="replace the output file if it exists")
     p_run.add_argument("--plot", help="figure of the solution (.png, .pdf, .svg)")
     p_run.add_argument("--animate", help="animation of a dynamic run (.gif, or .mp4 with ffmpeg)")
     p_run.set_defaults(func=_run)

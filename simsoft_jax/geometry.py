@@ -145,3 +145,57 @@ def reference_frames(geometry, elements):
         R, p = polyline_frames(geometry.points, elements)
         return R, p - p[0]
     raise ValueError(f"geometry.kind: unknown kind {geometry.kind!r}")
+
+
+def element_turns(geometry, elements):
+    """Angle (rad) of each element's stress-free relative rotation, (elements,).
+
+    Arc: ``angle / elements``; helix: ``(arc length / elements) / sqrt(a^2 + b^2)`` (the
+    magnitude of its curvature-torsion vector); straight: 0; polyline: the angle between
+    the node tangents at the element's two ends (the frames are parallel-transported), pi
+    where a node has no tangent (the polyline folds back onto itself there).
+    """
+    if geometry.kind == "straight":
+        return np.zeros(elements)
+    if geometry.kind == "arc":
+        return np.full(elements, np.deg2rad(geometry.angle_deg) / elements)
+    if geometry.kind == "helix":
+        b = geometry.pitch / (2.0 * np.pi)
+        return np.full(elements, geometry.arc_length / elements / np.hypot(geometry.radius, b))
+    nodes = resample_polyline(geometry.points, elements + 1)
+    tangents = np.gradient(nodes, axis=0)
+    norms = np.linalg.norm(tangents, axis=1)
+    scale = np.linalg.norm(np.diff(nodes, axis=0), axis=1).max()
+    unit = tangents / np.where(norms > 1e-12 * scale, norms, np.inf)[:, None]
+    cos = np.clip(np.einsum("ij,ij->i", unit[:-1], unit[1:]), -1.0, 1.0)
+    degenerate = (norms[:-1] <= 1e-12 * scale) | (norms[1:] <= 1e-12 * scale)
+    return np.where(degenerate, np.pi, np.arccos(cos))
+
+
+def _constant_strain(geometry):
+    """Reference strain f0 (6,) of a straight, arc or helix geometry."""
+    if geometry.kind == "straight":
+        return np.array([1.0, 0, 0, 0, 0, 0])
+    if geometry.kind == "arc":
+        return arc_strain(geometry.radius)
+    return helix_strain(geometry.radius, geometry.pitch)
+
+
+def frames_at(geometry, elements, nodes):
+    """Stress-free frames ``{node: (R, p)}`` (base frame) of the given nodes only (the
+    constant-strain shapes are evaluated at those nodes, not along the whole rod)."""
+    if geometry.kind == "polyline":
+        R, p = reference_frames(geometry, elements)
+        return {i: (R[i], p[i]) for i in nodes}
+    f0, ds = _constant_strain(geometry), geometry.arc_length / elements
+    return {i: (H[:3, :3], H[:3, 3]) for i in nodes for H in [_exp_se3_np(i * ds * f0)]}
+
+
+def element_chords(geometry, elements):
+    """Distance (m) between the two end nodes of each element of the stress-free shape,
+    (elements,). Straight, arc and helix have equal elements (one is computed)."""
+    if geometry.kind == "polyline":
+        p = resample_polyline(geometry.points, elements + 1)
+        return np.linalg.norm(np.diff(p, axis=0), axis=1)
+    _, p = constant_strain_frames(_constant_strain(geometry), geometry.arc_length / elements, 1)
+    return np.full(elements, np.linalg.norm(p[1] - p[0]))

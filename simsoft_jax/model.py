@@ -29,6 +29,7 @@ from . import geometry as geom
 from . import lie
 from .loads import LoadChannels, build_channels
 from .sections import inertia_diagonal, stiffness_diagonal, viscosity_diagonal
+from .supports import AXES, unheld_message
 
 
 class RodInfo(NamedTuple):
@@ -175,14 +176,19 @@ def _reference_twists(R, p):
     return np.asarray(_consecutive_twists(jnp.asarray(R), jnp.asarray(p)))
 
 
-def _check_held(scene):
-    """A static scene needs every rod held against rigid motion (clamp/drive or 2 pins)."""
+def _check_held(scene, frames, rods):
+    """A static scene needs every rod held against rigid motion: the rigid motions its
+    clamps, pins, hinges and drives leave free (:mod:`~simsoft_jax.supports`, at the
+    start configuration ``frames = (R0, p0)``) must be none; else a ValueError says which
+    motion is free and how to restrain it."""
+    R0, p0 = frames
     for i, rod in enumerate(scene.rods):
-        kinds = [c.kind for c in scene.constraints if c.rod == rod.name]
-        if not ({"clamp", "drive"} & set(kinds)) and kinds.count("pin") < 2:
-            raise ValueError(
-                f"constraints: rod {rod.name!r} (rods[{i}]) is free to move as a rigid body; "
-                "a static solve needs a clamp, a drive or two pins on it")
+        held = [c for c in scene.constraints if c.rod == rod.name]
+        first = rods[rod.name].first_node
+        at = {c.node: (R0[first + c.node], p0[first + c.node]) for c in held}
+        message = unheld_message(rod.name, i, held, at, rod.geometry.arc_length)
+        if message:
+            raise ValueError(message)
 
 
 def _initial_velocities(scene, rods, R0, p0):
@@ -233,8 +239,6 @@ def build_model(scene) -> Model:
     Loads with a constant time law go into the nodal/distributed arrays, the others into
     ``channels``; the scene's ``[solver].inertia`` chooses the element inertia (static).
     """
-    if scene.solver.kind == "static":
-        _check_held(scene)
     rods, elem_nodes = [], []
     R0, p0, d0, K, M, V = [], [], [], [], [], []
     node_offset = element_offset = 0
@@ -256,6 +260,9 @@ def build_model(scene) -> Model:
         element_offset += rod.elements
     n_nodes, n_elements = node_offset, element_offset
     by_name = {r.name: r for r in rods}
+    R0, p0 = np.concatenate(R0), np.concatenate(p0)
+    if scene.solver.kind == "static":
+        _check_held(scene, (R0, p0), by_name)
 
     free = np.ones((n_nodes, 6), bool)
     for c in scene.constraints:
@@ -263,6 +270,8 @@ def build_model(scene) -> Model:
         free[node, :3] = False
         if c.kind in ("clamp", "drive"):
             free[node, 3:] = False
+        elif c.kind == "hinge":  # rotation held except about the local axis
+            free[node, 3:] = [axis == c.axis for axis in AXES]
 
     nodal_dead = np.zeros((n_nodes, 6))
     nodal_follower = np.zeros((n_nodes, 6))
@@ -284,7 +293,6 @@ def build_model(scene) -> Model:
     length = np.linalg.norm(d0[:, :3], axis=1)
     gravity = np.zeros(3) if scene.gravity is None else np.asarray(scene.gravity, float)
     V = np.concatenate(V)
-    R0, p0 = np.concatenate(R0), np.concatenate(p0)
     times, disp, rot, slide, drive_nodes, sliding = _drive_tables(scene, by_name)
     loads = scene.loads
     structure = Structure(

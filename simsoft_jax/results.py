@@ -18,6 +18,7 @@ import numpy as np
 from .dynamics import Trajectory, rollout
 from .dynamics.driver import compile_key
 from .model import Model, build_model
+from .output import finite_or_none, write_atomic
 from .scene import Scene, load_scene
 from .statics import _solve_static, as_traced, settings_from_scene
 from .status import Status
@@ -122,45 +123,55 @@ class Result:
 
     def to_dict(self) -> dict:
         """The result-file layout of the scene-format contract (plain Python types);
-        dynamic results add per-rod ``velocities`` (T, nodes, 6), as :meth:`velocities`."""
+        dynamic results add per-rod ``velocities`` (T, nodes, 6), as :meth:`velocities`.
+        Non-finite numbers (a solve that blew up) are ``None``; the message then says how
+        many were replaced, so strict JSON readers accept the file."""
+        rods = {}
+        for r in self.model.structure.rods:
+            rods[r.name] = {"positions": self.positions(r.name),
+                            "rotations": self.rotations(r.name)}
+            if self.time is not None:  # body velocities: a restart needs them
+                rods[r.name]["velocities"] = self.velocities(r.name)
         d = {"name": self.name, "kind": self.kind, "converged": self.converged,
              "status": self.status, "message": self.message,
              "newton_iterations": self.newton_iterations,
              "residual_norm": self.residual_norm, "wall_time_s": self.wall_time_s,
-             "compile_time_s": self.compile_time_s,
-             "rods": {r.name: {"positions": self.positions(r.name).tolist(),
-                               "rotations": self.rotations(r.name).tolist()}
-                      for r in self.model.structure.rods}}
+             "compile_time_s": self.compile_time_s, "rods": rods}
         if self.time is not None:
-            d["time"] = self.time.tolist()
-            for r in self.model.structure.rods:  # body velocities: a restart needs them
-                d["rods"][r.name]["velocities"] = self.velocities(r.name).tolist()
+            d["time"] = self.time
         if not self.converged:
             d["failed_at"] = ({"time": self.failed_at} if self.time is not None else
                               {"load_level": self.load_level,
                                "residual_norm": self.residual_norm})
+        d, replaced = finite_or_none(d)
+        if replaced:
+            d["message"] += (f" ({replaced} non-finite value{'s' * (replaced > 1)} "
+                             "written as null)")
         return d
 
     def save(self, path) -> Path:
-        """Write the result as ``.json`` (contract layout) or ``.npz`` (same keys;
-        per-rod arrays as ``<rod>/positions``, ``<rod>/rotations`` and, dynamic,
-        ``<rod>/velocities``)."""
+        """Write the result as ``.json`` (contract layout, strict JSON: no NaN/Infinity)
+        or ``.npz`` (same keys; per-rod arrays as ``<rod>/positions``, ``<rod>/rotations``
+        and, dynamic, ``<rod>/velocities``). The file is written to a temporary name in
+        the same folder and renamed: a failed or interrupted write leaves the old file
+        (or none), never a partial one. An existing file is replaced."""
         path = Path(path)
         if path.suffix == ".json":
-            path.write_text(json.dumps(self.to_dict(), indent=1))
-        elif path.suffix == ".npz":
-            d = self.to_dict()
-            arrays = {k: np.asarray(v) for k, v in d.items()
-                      if k not in ("rods", "failed_at") and v is not None}
-            for rod in d["rods"]:
-                arrays[f"{rod}/positions"] = self.positions(rod)
-                arrays[f"{rod}/rotations"] = self.rotations(rod)
-                if self.time is not None:
-                    arrays[f"{rod}/velocities"] = self.velocities(rod)
-            np.savez(path, **arrays)
-        else:
+            text = json.dumps(self.to_dict(), indent=1, allow_nan=False)
+            return write_atomic(path, lambda fh: fh.write(text))
+        if path.suffix != ".npz":
             raise ValueError(f"output: unsupported suffix {path.suffix!r} (use .json or .npz)")
-        return path
+        d = self.to_dict()
+        arrays = {k: np.asarray(v) for k, v in d.items()
+                  if k not in ("rods", "failed_at", "time") and v is not None}
+        if self.time is not None:
+            arrays["time"] = self.time
+        for rod in d["rods"]:
+            arrays[f"{rod}/positions"] = self.positions(rod)
+            arrays[f"{rod}/rotations"] = self.rotations(rod)
+            if self.time is not None:
+                arrays[f"{rod}/velocities"] = self.velocities(rod)
+        return write_atomic(path, lambda fh: np.savez(fh, **arrays), binary=True)
 
 
 def _run_dynamic(scene: Scene, model: Model, progress=None) -> Result:
@@ -178,8 +189,9 @@ def run(scene, progress=None) -> Result:
     """Solve a scene (a :class:`Scene`, a dict or a path to a .toml/.json file).
 
     Static scenes: :func:`~simsoft_jax.statics.solve_static` at full load. Dynamic scenes:
-    :func:`~simsoft_jax.dynamics.simulate` from t = 0 for round(t_end/dt) steps, keeping
-    every ``save_every``-th state, in compiled chunks; ``progress(t, t_end)`` is called
+    :func:`~simsoft_jax.dynamics.rollout` from t = 0 to exactly t_end (steps of dt,
+    shorter closing steps where t_end/dt or save_every does not divide), keeping every
+    ``save_every``-th state and the last, in compiled chunks; ``progress(t, t_end)`` is called
     after each chunk. Compilation is cached per model structure.
     """
     if isinstance(scene, (str, Path)):

@@ -11,7 +11,9 @@ from __future__ import annotations
 import copy
 import dataclasses
 import json
+import math
 import sys
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,12 +24,14 @@ from ._validate import (SpecBase, check_keys, choice, fail, index, integer, join
                         number, plain, polyline, positive, prefixed, read_table,
                         readonly, require, rodrigues, rotation_vector, string, table,
                         toml_document, vector)
-from .scene_initial import parse_initial
+from .geometry import element_chords, element_turns
 from .materials import BUILTIN_MATERIALS, Material, get_material
+from .scene_initial import parse_initial
 from .scene_specs import (ConstraintSpec, GeometrySpec, InitialVelocitySpec, LoadSpec,
                           ProfileSpec, RodSpec, SegmentSpec, SolverSettings)
 from .sections import (Section, circle, custom_inertia, custom_stiffness, rectangle,
                        semicircle, tube)
+from .supports import AXES, stress_free_frames, unheld_message
 
 __all__ = ["SolverSettings", "GeometrySpec", "RodSpec", "ConstraintSpec", "ProfileSpec",
            "LoadSpec", "InitialVelocitySpec", "Scene", "load_scene", "save_scene"]
@@ -74,7 +78,10 @@ class Scene(SpecBase):
 _TOP_KEYS = ("name", "solver", "gravity", "materials", "rods", "constraints", "loads",
              "initial_velocity")
 _SOLVER_KEYS = ("kind", "tolerance", "max_iterations", "load_steps", "t_end", "dt",
-                "rho_inf", "save_every", "inertia", "tangent")
+                "rho_inf", "save_every", "inertia", "tangent", "max_steps")
+MAX_STEPS = 1_000_000      # time steps a dynamic run may take unless solver.max_steps says more
+MAX_ELEMENTS = 20_000      # elements in one scene (all rods)
+MAX_ELEMENT_TURN_DEG = 90.0  # stress-free rotation of one element (helical element's range)
 _MATERIAL_KEYS = ("name", "E", "G", "nu", "density", "viscosity")
 _ROD_KEYS = ("name", "material", "section", "shear_coefficients", "stiffness", "inertia",
              "elements", "geometry", "base", "initial", "segments")
@@ -122,20 +129,75 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
         if rod.name in rods:
             fail(index("rods", i) + ".name", f"duplicate rod name {rod.name!r}")
         rods[rod.name] = rod
+        total = sum(r.elements for r in rods.values())
+        if total > MAX_ELEMENTS:
+            fail(index("rods", i) + ".elements", f"the scene's rods have {total} elements "
+                 f"in all, more than the limit {MAX_ELEMENTS}")
 
     constraints = _parse_constraints(_array_of_tables(raw, "constraints"), rods)
     loads = tuple(_parse_load(item, index("loads", i), rods, base_dir)
                   for i, item in enumerate(_array_of_tables(raw, "loads")))
     velocities = _parse_velocities(_array_of_tables(raw, "initial_velocity"), rods)
+    if solver.kind == "dynamic":
+        _warn_short_features(loads, constraints, solver.dt)
+    _check_loads_on_held_nodes(raw.get("loads", []), loads, constraints)
+    if solver.kind == "static":
+        for i, c in enumerate(constraints):
+            if c.kind == "drive" and (np.any(c.displacement) or np.any(c.rotation)):
+                fail(index("constraints", i), "a static solve cannot follow a drive's "
+                     "displacement or rotation (it would hold the node where it starts); "
+                     "use a clamp at the driven pose (base or initial), or solver.kind = "
+                     "\"dynamic\"")
     if solver.kind == "static":  # rigid-body motion left free makes statics singular
         for i, rod in enumerate(rods.values()):
-            kinds = [c.kind for c in constraints if c.rod == rod.name]
-            if not {"clamp", "drive"} & set(kinds) and kinds.count("pin") < 2:
-                fail("constraints", f"rod {rod.name!r} (rods[{i}]) is free to move as a "
-                     "rigid body; a static solve needs a clamp, a drive or two pins on it")
+            held = [c for c in constraints if c.rod == rod.name]
+            frames = stress_free_frames(rod, {c.node for c in held})
+            message = unheld_message(rod.name, i, held, frames, rod.geometry.arc_length)
+            if message:
+                raise ValueError(message)
     return Scene(name=name, solver=solver, gravity=gravity, rods=tuple(rods.values()),
                  constraints=constraints, loads=loads, initial_velocity=velocities,
                  source=None, raw=raw)
+
+
+def _warn_short_features(loads: tuple, constraints: tuple, dt: float) -> None:
+    """Warn (``UserWarning``, naming the key) about time laws with features shorter than
+    the time step ``dt`` (s): a ramp or smoothstep with ``t1 - t0 < dt``, table or drive
+    samples closer than ``dt``. The steps sample such a law only at their own times, so a
+    pulse narrower than dt may be missed or its size misjudged."""
+    for i, load in enumerate(loads):
+        prof, path = load.profile, join(index("loads", i), "profile")
+        if prof.kind in ("ramp", "smoothstep") and prof.t1 - prof.t0 < dt:
+            warnings.warn(f"{path}: rises in t1 - t0 = {prof.t1 - prof.t0:g} s, less than "
+                          f"solver.dt = {dt:g} s; the steps sample it coarsely (reduce dt)",
+                          stacklevel=4)
+        elif prof.kind == "table" and len(prof.t) > 1 and np.diff(prof.t).min() < dt:
+            warnings.warn(f"{path}.t: samples {np.diff(prof.t).min():g} s apart, less than "
+                          f"solver.dt = {dt:g} s; a pulse narrower than dt may be missed "
+                          "(reduce dt)", stacklevel=4)
+    for i, c in enumerate(constraints):
+        if c.kind == "drive" and len(c.times) > 1 and np.diff(c.times).min() < dt:
+            warnings.warn(f"{index('constraints', i)}.times: samples "
+                          f"{np.diff(c.times).min():g} s apart, less than solver.dt = "
+                          f"{dt:g} s; the steps sample the drive coarsely (reduce dt)",
+                          stacklevel=4)
+
+
+def _check_loads_on_held_nodes(items: list, loads: tuple, constraints: tuple) -> None:
+    """A point load placed by arc length ``s`` is rounded to the nearest node; when that
+    node's constraint holds every dof the load acts on (a force on a clamped, pinned,
+    hinged or driven node; a moment on a clamped or driven one) the load would vanish
+    without a trace: reject it, naming the load's ``s`` key."""
+    held = {(c.rod, c.node): c.kind for c in constraints
+            if not (c.kind == "drive" and c.slides_along is not None)}
+    for i, (item, load) in enumerate(zip(items, loads)):
+        kind = held.get((load.rod, load.node))
+        if ("s" not in item or kind is None
+                or (load.kind == "moment" and kind not in ("clamp", "drive"))):
+            continue
+        fail(join(index("loads", i), "s"), f"s = {item['s']} is rounded to node "
+             f"{load.node} of rod {load.rod!r}, which a {kind} holds: the {load.kind} "
+             "would have no effect there; move it (or use more elements)")
 
 
 def _parse_solver(value: Any) -> SolverSettings:
@@ -145,6 +207,8 @@ def _parse_solver(value: Any) -> SolverSettings:
     out: dict[str, Any] = {"kind": kind}
     if "tolerance" in s:
         out["tolerance"] = positive(s["tolerance"], "solver.tolerance")
+        if out["tolerance"] >= 1.0:
+            fail("solver.tolerance", f"must be < 1 (a relative tolerance), got {s['tolerance']}")
     for key in ("max_iterations", "load_steps", "save_every"):
         if key in s:
             out[key] = integer(s[key], join("solver", key), minimum=1)
@@ -155,6 +219,11 @@ def _parse_solver(value: Any) -> SolverSettings:
             require(s, "solver", key)
     if "dt" in out and "t_end" in out and out["dt"] > out["t_end"]:
         fail("solver.dt", f"must be <= solver.t_end ({out['t_end']}), got {out['dt']}")
+    limit = integer(s.get("max_steps", MAX_STEPS), "solver.max_steps", minimum=1)
+    if "dt" in out and "t_end" in out and out["t_end"] / out["dt"] > limit:
+        fail("solver.dt", f"t_end / dt = {out['t_end'] / out['dt']:.4g} time steps, more "
+             f"than solver.max_steps ({limit}); increase dt, or raise solver.max_steps "
+             "to allow the run (its time and memory grow with the steps)")
     if "rho_inf" in s:
         out["rho_inf"] = number(s["rho_inf"], "solver.rho_inf")
         if not 0.0 <= out["rho_inf"] <= 1.0:
@@ -280,7 +349,11 @@ def _parse_rod(r: dict, path: str, materials: dict[str, Material],
         fail(join(path, "elements"), "required key missing")
 
     elements = integer(r["elements"], join(path, "elements"), minimum=1)
+    if elements > MAX_ELEMENTS:
+        fail(join(path, "elements"), f"must be <= {MAX_ELEMENTS} (the limit per scene), "
+             f"got {elements}")
     geometry = _parse_geometry(r["geometry"], join(path, "geometry"))
+    _check_elements(geometry, elements, join(path, "geometry"))
 
     position, rotation = np.zeros(3), np.eye(3)
     if "base" in r:
@@ -347,6 +420,34 @@ def _parse_geometry(value: Any, path: str) -> GeometrySpec:
     return GeometrySpec(kind, radius=radius, pitch=pitch, turns=turns)
 
 
+def _check_elements(geometry: GeometrySpec, elements: int, path: str) -> None:
+    """Every element of the stress-free shape must turn by at most MAX_ELEMENT_TURN_DEG
+    (a helical element cannot represent a rotation near pi, and is far too stiff well
+    before that) and have a length; the error says how many elements would do.
+    Polylines are checked for zero lengths first (a fold back onto itself)."""
+    def check_length():
+        lengths = element_chords(geometry, elements)
+        if lengths.min() <= 1e-9 * geometry.arc_length / elements:
+            fail(path, f"element {int(np.argmin(lengths))} of {elements} has zero length "
+                 "(its two nodes coincide in the stress-free shape: the shape folds back "
+                 "onto itself, or its dimensions are too small to represent); use more "
+                 "elements or check the dimensions")
+
+    if geometry.kind == "polyline":
+        check_length()
+    turns = np.degrees(element_turns(geometry, elements))
+    worst = float(turns.max())
+    if worst > MAX_ELEMENT_TURN_DEG * (1.0 + 1e-9):
+        need = max(elements + 1, math.ceil(elements * worst / MAX_ELEMENT_TURN_DEG - 1e-9))
+        advice = (f"use elements >= {need}" if geometry.kind != "polyline" else
+                  "the polyline turns too sharply there: round its corners with more "
+                  "points (a corner stays a corner however many elements)")
+        fail(path, f"element {int(np.argmax(turns))} of {elements} turns by {worst:.4g} "
+             f"degrees in the stress-free shape, more than the limit "
+             f"{MAX_ELEMENT_TURN_DEG:g} degrees per element; {advice}")
+    check_length()
+
+
 def _rod_of(item: dict, path: str, rods: dict[str, RodSpec]) -> RodSpec:
     name = string(require(item, path, "rod"), join(path, "rod"))
     if name not in rods:
@@ -378,9 +479,12 @@ def _parse_constraints(items: list[dict], rods: dict[str, RodSpec]) -> tuple:
     taken: dict[tuple[str, int], str] = {}
     for i, c in enumerate(items):
         path = index("constraints", i)
-        kind = choice(require(c, path, "kind"), join(path, "kind"), ("clamp", "pin", "drive"))
-        extra = ("times", "displacement", "rotation", "slides_along") if kind == "drive" else ()
-        check_keys(c, path, ("kind", "rod", "node", "s", *extra), required=("rod",))
+        kind = choice(require(c, path, "kind"), join(path, "kind"),
+                      ("clamp", "pin", "hinge", "drive"))
+        extra = (("times", "displacement", "rotation", "slides_along") if kind == "drive"
+                 else ("axis",) if kind == "hinge" else ())
+        check_keys(c, path, ("kind", "rod", "node", "s", *extra),
+                   required=("rod", "axis") if kind == "hinge" else ("rod",))
         rod = _rod_of(c, path, rods)
         node = _node(c, path, rod)
         where = join(path, "node" if "node" in c else "s")
@@ -391,6 +495,8 @@ def _parse_constraints(items: list[dict], rods: dict[str, RodSpec]) -> tuple:
         fields: dict[str, Any] = {}
         if kind == "drive":
             fields = _parse_drive(c, path)
+        elif kind == "hinge":
+            fields = {"axis": choice(c["axis"], join(path, "axis"), AXES)}
         out.append(ConstraintSpec(kind=kind, rod=rod.name, node=node, **fields))
     return tuple(out)
 

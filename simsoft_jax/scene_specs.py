@@ -87,9 +87,10 @@ class SegmentSpec(SpecBase):
 
 @dataclass(frozen=True, eq=False)
 class ConstraintSpec(SpecBase):
-    kind: str                         # "clamp" | "pin" | "drive"
+    kind: str                         # "clamp" | "pin" | "hinge" | "drive"
     rod: str
     node: int                         # non-negative
+    axis: str | None = None           # hinge only: "x" | "y" | "z", the free rotation (local)
     times: np.ndarray | None = None          # (S,)   drive only
     displacement: np.ndarray | None = None   # (S, 3) drive only
     rotation: np.ndarray | None = None       # (S, 3) rotation vectors, drive only

@@ -377,7 +377,8 @@ def test_load_tables_and_constraint_masks_two_rods():
                {"kind": "force", "rod": "b", "node": -2, "vector": v1},
                {"kind": "force", "rod": "b", "node": 3, "vector": v2},
                {"kind": "distributed_force", "rod": "a", "vector": qw},
-               {"kind": "distributed_force", "rod": "b", "vector": ql, "frame": "local"}])
+               {"kind": "distributed_force", "rod": "b", "vector": ql, "frame": "local"}],
+        kind="dynamic")                        # a static scene rejects a moving drive
     m = sj.build_model(sc)
     st = m.structure
     # node numbering: rod a nodes 0..4, rod b nodes 5..9; elements 0..3 and 4..7

@@ -24,8 +24,8 @@ from conftest import REPO_ROOT, SCENES_DIR
 
 ROOT = REPO_ROOT
 EXAMPLES = SCENES_DIR
-CONTRACT_KEYS = {"name", "kind", "converged", "newton_iterations", "residual_norm",
-                 "wall_time_s", "compile_time_s", "rods", "status", "message"}
+CONTRACT_KEYS = {"name", "kind", "converged", "status", "message", "newton_iterations",
+                 "residual_norm", "wall_time_s", "compile_time_s", "rods"}
 L, W, H, E = 0.508, 3.2024e-3, 12.377e-3, 71.7e9
 F = 4.448
 

@@ -230,7 +230,8 @@ def test_node_resolution_negative_and_arc_length():
 
 
 def test_arc_lengths_of_geometries():
-    d = mutate((ROD + ("geometry",), {"kind": "helix", "radius": 0.1, "pitch": 0.05, "turns": 2}))
+    d = mutate((ROD + ("geometry",), {"kind": "helix", "radius": 0.1, "pitch": 0.05, "turns": 2}),
+               (ROD + ("elements",), 8))  # 90 degrees per element, the limit
     g = Scene.from_dict(d).rods[0].geometry
     assert g.arc_length == pytest.approx(2 * math.hypot(2 * math.pi * 0.1, 0.05))
     d = mutate((ROD + ("geometry",), {"kind": "arc", "radius": 2.0, "angle_deg": 90}))

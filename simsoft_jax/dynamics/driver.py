@@ -28,11 +28,35 @@ def compile_key(model: Model, settings: DynamicSettings):
     return (treedef, tuple(x.shape for x in leaves), jax.tree_util.tree_structure(settings))
 
 
+def step_count(t_end: float, dt: float) -> int:
+    """Full steps of size ``dt`` before ``t_end``: ``floor(t_end/dt)``, rounded to the
+    nearest integer when ``t_end/dt`` is within 1e-9 of one (round-off)."""
+    ratio = t_end / dt
+    return max(1, int(round(ratio)) if abs(ratio - round(ratio)) <= 1e-9 * ratio
+               else int(ratio))
+
+
+def _tail(traj: Trajectory, converged: bool) -> Trajectory:
+    """The part of the closing chunk that is kept: its last saved state when it
+    converged, all its saved states otherwise (the caller cuts them at the failure)."""
+    return traj._replace(time=traj.time[-1:], R=traj.R[-1:], p=traj.p[-1:],
+                         v=traj.v[-1:]) if converged else traj._replace(
+        time=traj.time[1:], R=traj.R[1:], p=traj.p[1:], v=traj.v[1:])
+
+
 def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
             save_every: int = 1, progress=None, compiled=None,
             tolerance: float = 1e-10, max_iterations: int = 25, tangent: str = "closed_form"):
-    """Run from the initial state to ``t_end`` in compiled chunks of the same length.
+    """Run from the initial state to exactly ``t_end`` in compiled chunks of one length.
 
+    Steps of ``dt`` (s) are taken in chunks, the state after every ``save_every``-th step
+    saved. What is left before ``t_end`` when ``t_end/dt`` or ``save_every`` does not
+    divide evenly (less than ``save_every`` steps of ``dt``) is covered by one more call
+    of the same compiled chunk with a smaller step, ``(t_end - t)/(chunk length)``; its
+    last state, at ``t_end``, is saved. So the run always ends at ``t_end`` and saves it,
+    without a second compilation (the closing steps are shorter, never longer, than dt);
+    the last saved time is ``t_end`` itself (the sum of the steps differs from it by
+    round-off only).
     Any ``t_end``, ``dt``, ``rho_inf`` or ``tolerance`` reuses one compiled chunk for the
     same structure and chunk length; ``progress(t, t_end)`` is called after every chunk;
     the run stops at the first failed step and the returned trajectory ends there.
@@ -40,12 +64,15 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
     Returns ``(Trajectory, compile_seconds)`` with all saved states concatenated.
     """
     _check_viscosity(model)
-    steps = max(1, int(round(t_end / dt)))
+    if not 0.0 < dt <= t_end:
+        raise ValueError(f"solver.dt: must be in (0, t_end = {t_end:g}], got {dt:g}")
+    steps = step_count(t_end, dt)
     save_every = min(save_every, steps)
     total_saves = steps // save_every
     per_chunk = _chunk_saves(total_saves, save_every)
+    chunk_steps = per_chunk * save_every
     settings = as_traced(DynamicSettings(
-        dt=float(dt), steps=per_chunk * save_every, rho_inf=float(rho_inf),
+        dt=float(dt), steps=chunk_steps, rho_inf=float(rho_inf),
         save_every=save_every, tolerance=float(tolerance), max_iterations=int(max_iterations),
         tangent=tangent))
     compiled = {} if compiled is None else compiled
@@ -65,11 +92,21 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
             progress(float(state.t), t_end)
         if not bool(traj.converged):
             break
+    remaining = t_end - float(state.t)  # exact for t in [t_end/2, 2 t_end] (Sterbenz)
+    if bool(chunks[-1].converged) and remaining > 1e-9 * dt:
+        closing = settings.replace(dt=jnp.asarray(remaining / chunk_steps, jnp.float64))
+        traj = compiled[key](model, closing, state)
+        chunks.append(_tail(traj, bool(traj.converged)))
+        state = traj.final
+        if progress is not None:
+            progress(float(state.t), t_end)
     cat = lambda name: jnp.concatenate([getattr(c, name) for c in chunks])  # noqa: E731
     last = chunks[-1]
     traj = Trajectory(cat("time"), cat("R"), cat("p"), cat("v"), last.converged,
                       last.failed_at, cat("iterations"), cat("substeps"), state, last.status,
                       last.cause, last.residual)
+    if bool(last.converged) and abs(float(traj.time[-1]) - t_end) <= 1e-9 * dt:
+        traj = traj._replace(time=traj.time.at[-1].set(t_end))  # round-off of the sum of h
     if not bool(last.converged):  # saved states after the failure repeat the last good one
         keep = int(jnp.searchsorted(traj.time, last.failed_at, side="left")) + 1
         traj = traj._replace(time=traj.time[:keep], R=traj.R[:keep], p=traj.p[:keep],

@@ -1,0 +1,46 @@
+"""Extreme inputs the validator accepts end quickly with a reason (issue 17): the scenes
+that used to hang (a length of 1e300, a load of 1e300 N, gravity of 1e200 m/s^2) stop
+at load level 0 with a status and a message, and their result files are strict JSON; a
+length of 1e-300 m is rejected (its elements have no representable length)."""
+import json
+import time
+import warnings
+
+import pytest
+
+import simsoft_jax as sj
+from test_run_cli import scene_dict
+
+
+def strict(text):
+    def reject(token):
+        raise ValueError(token)
+    return json.loads(text, parse_constant=reject)
+
+
+@pytest.mark.parametrize("change", [
+    lambda d: d["rods"][0]["geometry"].update(length=1e300),
+    lambda d: d["loads"][0].update(vector=[0.0, 0.0, -1e300]),
+    lambda d: d.update(gravity={"vector": [0.0, 0.0, -1e200]}),
+], ids=["length 1e300", "load 1e300", "gravity 1e200"])
+def test_overflowing_scenes_end_with_a_reason(change, tmp_path):
+    d = scene_dict()
+    change(d)
+    start = time.perf_counter()
+    with warnings.catch_warnings():      # NumPy overflow warnings while building the model
+        warnings.simplefilter("ignore", RuntimeWarning)
+        r = sj.run(d)
+    assert time.perf_counter() - start < 60.0
+    assert not r.converged and r.load_level == 0.0
+    assert r.status in ("step_too_small", "max_attempts", "nonfinite")
+    assert r.message.startswith("static solve failed at load level 0:")
+    data = strict(r.save(tmp_path / "r.json").read_text())
+    assert data["converged"] is False and data["status"] == r.status
+
+
+def test_tiny_length_is_rejected():
+    d = scene_dict()
+    d["rods"][0]["geometry"]["length"] = 1e-300
+    with pytest.raises(ValueError, match=r"^rods\[0\]\.geometry: element 0 of 16 has zero "
+                                         r"length"):
+        sj.Scene.from_dict(d)
