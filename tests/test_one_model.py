@@ -82,8 +82,11 @@ def test_changed_loads_and_inertia_reach_the_rollout():
 
 
 def _direction(leaf, rng):
-    """A random direction for one float leaf, scaled like the leaf."""
-    return rng.standard_normal(np.shape(leaf)) * (np.abs(np.asarray(leaf)).mean() + 1e-3)
+    """A random direction for one float leaf, each entry scaled like that entry (so a
+    finite-difference step is the same relative change everywhere), zeros like a
+    thousandth of the leaf's mean size."""
+    size = np.abs(np.asarray(leaf))
+    return rng.standard_normal(np.shape(leaf)) * (size + 1e-3 * (size.mean() + 1e-3))
 
 
 def _perturb(model, name, direction, eps):
