@@ -1,8 +1,9 @@
 """Command line: ``simsoft-jax run | validate | princeton | calibrate | bench``.
 
-* ``run SCENE -o OUT.json|.npz [--force] [--plot F.png] [--animate F.gif]``: solve a
-  scene (exit 1 if not converged, 2 if the scene or the output path is invalid), with a
-  progress line on stderr for dynamic runs;
+* ``run SCENE -o OUT.json|.npz [--force] [--no-stability] [--plot F.png] [--animate F.gif]``:
+  solve a scene (exit 1 if not converged, 2 if the scene or the output path is invalid),
+  with a progress line on stderr for dynamic runs and a warning for an unstable static
+  equilibrium;
 * ``validate SCENE``: check a scene file without solving it;
 * ``princeton``: the 25 load cases of the Princeton beam, a results table and figures
   (seed Figs. 15-18 when ``--measurements`` are given);
@@ -29,7 +30,7 @@ def _run(args) -> int:
     try:
         if args.output:  # before solving: a bad output path must not cost a solve
             check_output(args.output, force=args.force)
-        result = run(args.scene, progress=progress)
+        result = run(args.scene, progress=progress, stability=not args.no_stability)
     except (ValueError, NotImplementedError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
@@ -48,6 +49,10 @@ def _run(args) -> int:
         except (ValueError, RuntimeError) as err:
             print(f"error: {err}", file=sys.stderr)
             return 2
+    if result.stability is not None and not result.stability["stable"]:
+        print(f"warning: unstable equilibrium: {result.stability['negative_eigenvalues']} "
+              "negative eigenvalues of the tangent (past a buckling or snap-through load; "
+              "a small perturbation leaves this state)", file=sys.stderr)
     status = "converged" if result.converged else f"NOT converged: {result.message}"
     detail = (f"{len(result.time)} saved states" if result.time is not None
               else f"residual {result.residual_norm:.3g}")
@@ -191,6 +196,9 @@ def main(argv=None) -> int:
                        "before solving, written atomically")
     p_run.add_argument("--force", action="store_true",
                        help="replace the output file if it exists")
+    p_run.add_argument("--no-stability", action="store_true",
+                       help="static scenes: skip the stability check (the count of negative "
+                       "eigenvalues of the tangent at the equilibrium)")
     p_run.add_argument("--plot", help="figure of the solution (.png, .pdf, .svg)")
     p_run.add_argument("--animate", help="animation of a dynamic run (.gif, or .mp4 with ffmpeg)")
     p_run.set_defaults(func=_run)
