@@ -1,7 +1,8 @@
 """Command line: ``simsoft-jax run | validate | princeton | calibrate | bench``.
 
 * ``run SCENE -o OUT.json|.npz [--force] [--no-stability] [--plot F.png] [--animate F.gif]``:
-  solve a scene (exit 1 if not converged, 2 if the scene or the output path is invalid),
+  solve a scene (exit 1 if not converged, 2 if the scene or the output path is invalid,
+  130 on Ctrl-C, after writing the states computed so far),
   with a progress line on stderr for dynamic runs and a warning for an unstable static
   equilibrium;
 * ``validate SCENE``: check a scene file without solving it;
@@ -34,6 +35,9 @@ def _run(args) -> int:
     except (ValueError, NotImplementedError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("\ninterrupted before the first chunk finished: nothing written", file=sys.stderr)
+        return 130
     if result.time is not None:
         print(file=sys.stderr)  # end the progress line
     if args.output:
@@ -43,6 +47,11 @@ def _run(args) -> int:
             print(f"error: output: cannot write {args.output!r}: {err.strerror or err} "
                   "(the old file, if any, is unchanged)", file=sys.stderr)
             return 2
+    if result.status == "interrupted":
+        print(f"interrupted at t = {result.failed_at:.6g} s; "
+              + (f"wrote the states computed so far to {args.output}" if args.output
+                 else "nothing written (no -o)"), file=sys.stderr)
+        return 130
     if args.plot or args.animate:
         try:
             _figures(result, args.plot, args.animate)

@@ -67,7 +67,7 @@ class Result:
 
     Attributes: name, kind ("static" | "dynamic"), converged (bool), status (short code:
     "converged", "max_iterations", "nonfinite", "step_too_small", "off_branch",
-    "max_attempts"), message (one sentence: how the solve ended and where),
+    "max_attempts", "interrupted"), message (one sentence: how the solve ended and where),
     newton_iterations (int, total), residual_norm (static: N, weighted; dynamic: at the
     failed step, None when converged), load_level (static: fraction of the loads
     reached), failed_at (dynamic: time of the failed step or None),
