@@ -36,7 +36,7 @@ def _run(args) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("\ninterrupted before the first chunk finished: nothing written", file=sys.stderr)
+        print("\ninterrupted before any state was computed: nothing written", file=sys.stderr)
         return 130
     if result.time is not None:
         print(file=sys.stderr)  # end the progress line

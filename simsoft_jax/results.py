@@ -82,8 +82,8 @@ class Result:
     def __init__(self, scene: Scene, model: Model, raw, wall_time_s: float,
                  compile_time_s: float, stability: dict | None = None):
         self.name = scene.name
-        self.stability = stability
         self.kind = scene.solver.kind
+        self.stability = stability
         self.model = model
         self.raw = raw
         self.converged = bool(raw.converged)
@@ -144,7 +144,7 @@ class Result:
              "compile_time_s": self.compile_time_s, "rods": rods}
         if self.time is not None:
             d["time"] = self.time
-        if self.time is None:  # static: None when not checked (not converged, or skipped)
+        else:  # static: None when not checked (not converged, or skipped)
             d["stability"] = None if self.stability is None else dict(self.stability)
         if not self.converged:
             d["failed_at"] = ({"time": self.failed_at} if self.time is not None else
