@@ -22,7 +22,7 @@ __all__ = [
     "fail", "join", "index", "describe", "plain", "table", "check_keys", "require",
     "number", "positive", "integer", "string", "choice", "vector", "matrix",
     "rotation_vector", "rotation_matrix", "rodrigues", "proper_rotations", "prefixed",
-    "readonly",
+    "readonly", "short_key", "check_depth", "MAX_DEPTH",
     "SpecBase", "same", "read_table", "toml_document",
 ]
 
@@ -32,9 +32,41 @@ def fail(path: str, message: str) -> None:
     raise ValueError(f"{path}: {message}" if path else message)
 
 
+MAX_DEPTH = 64       # nesting levels (tables and arrays) a scene may have
+MAX_KEY_ECHO = 40    # characters of a key repeated in an error message
+
+
+def short_key(key: Any) -> str:
+    """``key`` as text, cut to its first MAX_KEY_ECHO characters + "..." when longer (an
+    error message must stay readable whatever key a file holds)."""
+    text = str(key)
+    return text if len(text) <= MAX_KEY_ECHO else text[:MAX_KEY_ECHO] + "..."
+
+
 def join(path: str, key: str) -> str:
-    """``join("rods[0]", "section") == "rods[0].section"``."""
+    """``join("rods[0]", "section") == "rods[0].section"`` (long keys shortened,
+    :func:`short_key`)."""
+    key = short_key(key)
     return f"{path}.{key}" if path else key
+
+
+def check_depth(value: Any, limit: int = MAX_DEPTH) -> None:
+    """Reject dicts/lists/tuples nested more than ``limit`` levels deep (checked without
+    recursion, so any depth gives this one error instead of a RecursionError)."""
+    stack = [(value, 1, "")]
+    while stack:
+        item, depth, path = stack.pop()
+        if isinstance(item, dict):
+            children = ((join(path, k), v) for k, v in item.items())
+        elif isinstance(item, (list, tuple)):
+            children = ((index(path, i), v) for i, v in enumerate(item))
+        else:
+            continue
+        if depth > limit:
+            fail(path[:80] + ("..." if len(path) > 80 else ""),
+                 f"nested more than {limit} levels deep (tables and arrays); a scene "
+                 f"may nest at most {limit}")
+        stack.extend((v, depth + 1, p) for p, v in children)
 
 
 def index(path: str, i: int) -> str:

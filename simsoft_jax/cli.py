@@ -1,8 +1,10 @@
 """Command line: ``simsoft-jax run | validate | princeton | calibrate | bench``.
 
-* ``run SCENE -o OUT.json|.npz [--force] [--plot F.png] [--animate F.gif]``: solve a
-  scene (exit 1 if not converged, 2 if the scene or the output path is invalid), with a
-  progress line on stderr for dynamic runs;
+* ``run SCENE -o OUT.json|.npz [--force] [--no-stability] [--plot F.png] [--animate F.gif]``:
+  solve a scene (exit 1 if not converged, 2 if the scene or the output path is invalid,
+  130 on Ctrl-C, after writing the states computed so far),
+  with a progress line on stderr for dynamic runs and a warning for an unstable static
+  equilibrium;
 * ``validate SCENE``: check a scene file without solving it;
 * ``princeton``: the 25 load cases of the Princeton beam, a results table and figures
   (seed Figs. 15-18 when ``--measurements`` are given);
@@ -29,10 +31,13 @@ def _run(args) -> int:
     try:
         if args.output:  # before solving: a bad output path must not cost a solve
             check_output(args.output, force=args.force)
-        result = run(args.scene, progress=progress)
+        result = run(args.scene, progress=progress, stability=not args.no_stability)
     except (ValueError, NotImplementedError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("\ninterrupted before any state was computed: nothing written", file=sys.stderr)
+        return 130
     if result.time is not None:
         print(file=sys.stderr)  # end the progress line
     if args.output:
@@ -42,12 +47,21 @@ def _run(args) -> int:
             print(f"error: output: cannot write {args.output!r}: {err.strerror or err} "
                   "(the old file, if any, is unchanged)", file=sys.stderr)
             return 2
+    if result.status == "interrupted":
+        print(f"interrupted at t = {result.failed_at:.6g} s; "
+              + (f"wrote the states computed so far to {args.output}" if args.output
+                 else "nothing written (no -o)"), file=sys.stderr)
+        return 130
     if args.plot or args.animate:
         try:
             _figures(result, args.plot, args.animate)
         except (ValueError, RuntimeError) as err:
             print(f"error: {err}", file=sys.stderr)
             return 2
+    if result.stability is not None and not result.stability["stable"]:
+        print(f"warning: unstable equilibrium: {result.stability['negative_eigenvalues']} "
+              "negative eigenvalues of the tangent (past a buckling or snap-through load; "
+              "a small perturbation leaves this state)", file=sys.stderr)
     status = "converged" if result.converged else f"NOT converged: {result.message}"
     detail = (f"{len(result.time)} saved states" if result.time is not None
               else f"residual {result.residual_norm:.3g}")
@@ -191,6 +205,9 @@ def main(argv=None) -> int:
                        "before solving, written atomically")
     p_run.add_argument("--force", action="store_true",
                        help="replace the output file if it exists")
+    p_run.add_argument("--no-stability", action="store_true",
+                       help="static scenes: skip the stability check (the count of negative "
+                       "eigenvalues of the tangent at the equilibrium)")
     p_run.add_argument("--plot", help="figure of the solution (.png, .pdf, .svg)")
     p_run.add_argument("--animate", help="animation of a dynamic run (.gif, or .mp4 with ffmpeg)")
     p_run.set_defaults(func=_run)

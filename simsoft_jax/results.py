@@ -21,6 +21,7 @@ from .model import Model, build_model
 from .output import finite_or_none, write_atomic
 from .scene import Scene, load_scene
 from .statics import _solve_static, as_traced, settings_from_scene
+from .stability import negative_eigenvalues
 from .status import Status
 
 
@@ -66,19 +67,23 @@ class Result:
 
     Attributes: name, kind ("static" | "dynamic"), converged (bool), status (short code:
     "converged", "max_iterations", "nonfinite", "step_too_small", "off_branch",
-    "max_attempts"), message (one sentence: how the solve ended and where),
+    "max_attempts", "interrupted"), message (one sentence: how the solve ended and where),
     newton_iterations (int, total), residual_norm (static: N, weighted; dynamic: at the
     failed step, None when converged), load_level (static: fraction of the loads
     reached), failed_at (dynamic: time of the failed step or None),
     time ((T,) s, dynamic only), wall_time_s (after compilation), compile_time_s, model,
     raw (the :class:`~simsoft_jax.statics.Equilibrium` or
-    :class:`~simsoft_jax.dynamics.Trajectory`).
+    :class:`~simsoft_jax.dynamics.Trajectory`), stability (static only, None when not
+    checked (not converged, or ``run(..., stability=False)``):
+    ``{"negative_eigenvalues": n, "stable": n == 0}``,
+    :mod:`simsoft_jax.stability`).
     """
 
     def __init__(self, scene: Scene, model: Model, raw, wall_time_s: float,
-                 compile_time_s: float):
+                 compile_time_s: float, stability: dict | None = None):
         self.name = scene.name
         self.kind = scene.solver.kind
+        self.stability = stability
         self.model = model
         self.raw = raw
         self.converged = bool(raw.converged)
@@ -139,6 +144,8 @@ class Result:
              "compile_time_s": self.compile_time_s, "rods": rods}
         if self.time is not None:
             d["time"] = self.time
+        else:  # static: None when not checked (not converged, or skipped)
+            d["stability"] = None if self.stability is None else dict(self.stability)
         if not self.converged:
             d["failed_at"] = ({"time": self.failed_at} if self.time is not None else
                               {"load_level": self.load_level,
@@ -163,7 +170,9 @@ class Result:
             raise ValueError(f"output: unsupported suffix {path.suffix!r} (use .json or .npz)")
         d = self.to_dict()
         arrays = {k: np.asarray(v) for k, v in d.items()
-                  if k not in ("rods", "failed_at", "time") and v is not None}
+                  if k not in ("rods", "failed_at", "time", "stability") and v is not None}
+        if self.stability is not None:
+            arrays["stability/negative_eigenvalues"] = self.stability["negative_eigenvalues"]
         if self.time is not None:
             arrays["time"] = self.time
         for rod in d["rods"]:
@@ -185,14 +194,25 @@ def _run_dynamic(scene: Scene, model: Model, progress=None) -> Result:
     return Result(scene, model, jax.block_until_ready(trajectory), wall, compile_time)
 
 
-def run(scene, progress=None) -> Result:
+_negative_eigenvalues = jax.jit(negative_eigenvalues)
+
+
+def check_stability(model: Model, equilibrium) -> dict:
+    """``{"negative_eigenvalues": n, "stable": n == 0}`` at a static equilibrium."""
+    n = int(_negative_eigenvalues(model, equilibrium))
+    return {"negative_eigenvalues": n, "stable": n == 0}
+
+
+def run(scene, progress=None, stability: bool = True) -> Result:
     """Solve a scene (a :class:`Scene`, a dict or a path to a .toml/.json file).
 
     Static scenes: :func:`~simsoft_jax.statics.solve_static` at full load. Dynamic scenes:
     :func:`~simsoft_jax.dynamics.rollout` from t = 0 to exactly t_end (steps of dt,
     shorter closing steps where t_end/dt or save_every does not divide), keeping every
     ``save_every``-th state and the last, in compiled chunks; ``progress(t, t_end)`` is called
-    after each chunk. Compilation is cached per model structure.
+    after each chunk. Compilation is cached per model structure. ``stability``: count the
+    negative eigenvalues of the tangent at a converged static equilibrium
+    (:attr:`Result.stability`; :mod:`simsoft_jax.stability`).
     """
     if isinstance(scene, (str, Path)):
         scene = load_scene(scene)
@@ -206,4 +226,6 @@ def run(scene, progress=None) -> Result:
     start = time.perf_counter()
     equilibrium = jax.block_until_ready(solver(model, as_traced(settings)))
     wall = time.perf_counter() - start
-    return Result(scene, model, equilibrium, wall, compile_time)
+    checked = (check_stability(model, equilibrium)
+               if stability and bool(equilibrium.converged) else None)
+    return Result(scene, model, equilibrium, wall, compile_time, checked)

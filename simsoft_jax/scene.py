@@ -18,8 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import (SpecBase, check_keys, choice, fail, index, integer, join, matrix,
-                        number, plain, polyline, positive, prefixed, read_table,
+from ._validate import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, fail, index,
+                        integer, join, matrix, number, plain, polyline, positive, prefixed, read_table,
                         readonly, require, rodrigues, rotation_vector, string, table,
                         toml_document, vector)
 from .materials import BUILTIN_MATERIALS, Material, get_material
@@ -105,6 +105,7 @@ def _array_of_tables(d: dict, key: str) -> list[dict]:
 
 
 def _parse_scene(d: Any, base_dir: Path) -> Scene:
+    check_depth(d)
     raw = plain(table(d, "", "a scene table (dict)"))
     check_keys(raw, "", _TOP_KEYS, required=("solver", "rods"))
     name = string(raw["name"], "name") if "name" in raw else None
@@ -559,6 +560,9 @@ def load_scene(path: str | Path) -> Scene:
         raise ValueError(f"{path}: cannot read scene file: {err.strerror or err}") from None
     except ValueError as err:  # JSONDecodeError and TOMLDecodeError are ValueErrors
         raise ValueError(f"{path}: not valid {suffix[1:].upper()}: {err}") from None
+    except RecursionError:  # the parsers recurse per nesting level
+        raise ValueError(f"{path}: nested too deeply to read (a scene may nest tables and "
+                         f"arrays at most {MAX_DEPTH} levels deep)") from None
     scene = Scene.from_dict(data, base_dir=path.parent)
     return dataclasses.replace(scene, source=str(path))
 

@@ -24,6 +24,7 @@ class Status(enum.IntEnum):
     OFF_BRANCH = 4       # a nodal rotation increment left the branch of the exponential map
     MAX_ATTEMPTS = 5     # the static continuation used all its attempts (max_attempts)
     NOT_RUN = 6          # no failure recorded (used as a cause when there was none)
+    INTERRUPTED = 7      # the host driver stopped on KeyboardInterrupt (Ctrl-C) between chunks
 
     @property
     def code(self) -> str:
@@ -41,6 +42,8 @@ _REASONS = {
                        "exponential map the solver stays on",
     Status.MAX_ATTEMPTS: "the continuation used all its attempts (max_attempts)",
     Status.NOT_RUN: "no Newton failure recorded",
+    Status.INTERRUPTED: "interrupted (KeyboardInterrupt, Ctrl-C); the states computed "
+                        "before are kept",
 }
 
 
@@ -61,6 +64,8 @@ def describe(kind: str, status, cause, where: float, residual: float) -> str:
     if status == Status.CONVERGED:
         return f"{kind} solve converged (residual {residual:.3g})"
     place = (f"at load level {where:.6g}" if kind == "static" else f"at t = {where:.6g} s")
+    if status == Status.INTERRUPTED:
+        return f"{kind} solve stopped {place}: {reason(status)}"
     text = f"{kind} solve failed {place}: {reason(status)}"
     if cause not in (status, Status.NOT_RUN, Status.CONVERGED):
         text += f", after {reason(cause)}"

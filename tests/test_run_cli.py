@@ -24,8 +24,9 @@ from conftest import REPO_ROOT, SCENES_DIR
 
 ROOT = REPO_ROOT
 EXAMPLES = SCENES_DIR
+# keys of static results (dynamic results have "time" instead of "stability")
 CONTRACT_KEYS = {"name", "kind", "converged", "status", "message", "newton_iterations",
-                 "residual_norm", "wall_time_s", "compile_time_s", "rods"}
+                 "residual_norm", "wall_time_s", "compile_time_s", "rods", "stability"}
 L, W, H, E = 0.508, 3.2024e-3, 12.377e-3, 71.7e9
 F = 4.448
 
@@ -113,6 +114,7 @@ def test_to_dict_has_exactly_the_contract_layout(result):
     d = result.to_dict()
     assert set(d) == CONTRACT_KEYS
     assert d["name"] == "cantilever_tip_force" and d["kind"] == "static"
+    assert d["stability"] == {"negative_eigenvalues": 0, "stable": True}
     assert d["converged"] is True
     assert isinstance(d["newton_iterations"], int) and d["newton_iterations"] > 0
     for key in ("residual_norm", "wall_time_s", "compile_time_s"):

@@ -1,5 +1,6 @@
 """Host driver of long rollouts: one compiled chunk of steps, called repeatedly from
-Python, with progress reports between chunks and a stop at the first failure."""
+Python, with progress reports between chunks, a stop at the first failure and a clean
+stop on KeyboardInterrupt (Ctrl-C) that keeps the chunks computed so far."""
 from __future__ import annotations
 
 import time
@@ -9,6 +10,7 @@ import jax.numpy as jnp
 
 from ..model import Model
 from ..statics import as_traced
+from ..status import Status
 from .rollout import Trajectory, _check_viscosity, _simulate, initial_state
 from .scheme import DynamicSettings
 
@@ -44,6 +46,25 @@ def _tail(traj: Trajectory, converged: bool) -> Trajectory:
         time=traj.time[1:], R=traj.R[1:], p=traj.p[1:], v=traj.v[1:])
 
 
+def _concatenate(chunks, state) -> Trajectory:
+    """One trajectory of the saved states of ``chunks``, ending with the last one's flags."""
+    cat = lambda name: jnp.concatenate([getattr(c, name) for c in chunks])  # noqa: E731
+    last = chunks[-1]
+    return Trajectory(cat("time"), cat("R"), cat("p"), cat("v"), last.converged,
+                      last.failed_at, cat("iterations"), cat("substeps"), state, last.status,
+                      last.cause, last.residual)
+
+
+def _interrupted(chunks, state) -> Trajectory:
+    """The completed ``chunks`` of a run stopped by KeyboardInterrupt (status INTERRUPTED,
+    failed_at the last saved time, residual nan)."""
+    traj = _concatenate(chunks, state)
+    return traj._replace(converged=jnp.asarray(False), failed_at=traj.time[-1],
+                         status=jnp.asarray(int(Status.INTERRUPTED)),
+                         cause=jnp.asarray(int(Status.NOT_RUN)),
+                         residual=jnp.asarray(jnp.nan))
+
+
 def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
             save_every: int = 1, progress=None, compiled=None,
             tolerance: float = 1e-10, max_iterations: int = 25, tangent: str = "closed_form"):
@@ -60,6 +81,10 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
     Any ``t_end``, ``dt``, ``rho_inf`` or ``tolerance`` reuses one compiled chunk for the
     same structure and chunk length; ``progress(t, t_end)`` is called after every chunk;
     the run stops at the first failed step and the returned trajectory ends there.
+    A KeyboardInterrupt after the first chunk (in ``progress`` or while a chunk runs)
+    stops the run too: the trajectory holds the completed chunks, with converged False,
+    status ``INTERRUPTED`` and failed_at the last computed time (one during the first
+    chunk is raised: nothing was computed; one after a failed chunk keeps the failure).
     ``compiled`` may be a dict used as a cache of compiled chunks.
     Returns ``(Trajectory, compile_seconds)`` with all saved states concatenated.
     """
@@ -83,28 +108,31 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
         compiled[key] = _simulate.lower(model, settings, state).compile()
     compile_seconds = time.perf_counter() - start
     chunks = []
-    for _ in range(total_saves // per_chunk):
-        traj = compiled[key](model, settings, state)
-        chunks.append(traj if not chunks else traj._replace(
-            time=traj.time[1:], R=traj.R[1:], p=traj.p[1:], v=traj.v[1:]))
-        state = traj.final
-        if progress is not None:
-            progress(float(state.t), t_end)
-        if not bool(traj.converged):
-            break
-    remaining = t_end - float(state.t)  # exact for t in [t_end/2, 2 t_end] (Sterbenz)
-    if bool(chunks[-1].converged) and remaining > 1e-9 * dt:
-        closing = settings.replace(dt=jnp.asarray(remaining / chunk_steps, jnp.float64))
-        traj = compiled[key](model, closing, state)
-        chunks.append(_tail(traj, bool(traj.converged)))
-        state = traj.final
-        if progress is not None:
-            progress(float(state.t), t_end)
-    cat = lambda name: jnp.concatenate([getattr(c, name) for c in chunks])  # noqa: E731
+    try:
+        for _ in range(total_saves // per_chunk):
+            traj = compiled[key](model, settings, state)
+            chunks.append(traj if not chunks else traj._replace(
+                time=traj.time[1:], R=traj.R[1:], p=traj.p[1:], v=traj.v[1:]))
+            state = traj.final
+            if progress is not None:
+                progress(float(state.t), t_end)
+            if not bool(traj.converged):
+                break
+        remaining = t_end - float(state.t)  # exact for t in [t_end/2, 2 t_end] (Sterbenz)
+        if bool(chunks[-1].converged) and remaining > 1e-9 * dt:
+            closing = settings.replace(dt=jnp.asarray(remaining / chunk_steps, jnp.float64))
+            traj = compiled[key](model, closing, state)
+            chunks.append(_tail(traj, bool(traj.converged)))
+            state = traj.final
+            if progress is not None:
+                progress(float(state.t), t_end)
+    except KeyboardInterrupt:
+        if not chunks:
+            raise
+        if bool(chunks[-1].converged):
+            return _interrupted(chunks, state), compile_seconds
     last = chunks[-1]
-    traj = Trajectory(cat("time"), cat("R"), cat("p"), cat("v"), last.converged,
-                      last.failed_at, cat("iterations"), cat("substeps"), state, last.status,
-                      last.cause, last.residual)
+    traj = _concatenate(chunks, state)
     if bool(last.converged) and abs(float(traj.time[-1]) - t_end) <= 1e-9 * dt:
         traj = traj._replace(time=traj.time.at[-1].set(t_end))  # round-off of the sum of h
     if not bool(last.converged):  # saved states after the failure repeat the last good one
