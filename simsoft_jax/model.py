@@ -298,7 +298,6 @@ def build_model(scene) -> Model:
         if load.element is not None:
             target = point_dead if load.frame == "world" else point_follower
             target[info.first_element + load.element, cols] += load.vector
-            point_xi[info.first_element + load.element] = load.xi
             continue
         target = nodal_dead if load.frame == "world" else nodal_follower
         target[info.first_node + load.node, cols] += load.vector
@@ -309,6 +308,9 @@ def build_model(scene) -> Model:
     V = np.concatenate(V)
     times, disp, rot, slide, drive_nodes, sliding = _drive_tables(scene, by_name)
     loads = scene.loads
+    for load in loads:
+        if load.element is not None:
+            point_xi[by_name[load.rod].first_element + load.element] = load.xi
     at_node = [ld for ld in loads if ld.kind != "distributed_force" and ld.element is None]
     inside = [ld for ld in loads if ld.element is not None]
     structure = Structure(

@@ -496,9 +496,6 @@ def _parse_load(ld: dict, path: str, rods: dict[str, RodSpec], base_dir: Path) -
     if profile.kind == "table" and "file" in ld.get("profile", {}):
         ld["profile"] = {"kind": "table", "t": profile.t.tolist(),
                          "scale": profile.scale.tolist()}  # keep raw self-contained
-    if place.get("element") is not None and profile.kind != "constant":
-        fail(join(path, "s"), "a load by s between two nodes needs a constant profile "
-             "(time laws act on loads at nodes: give node, or s on a node)")
     return LoadSpec(kind=kind, rod=rod.name, vector=readonly(vec), frame=frame,
                     profile=profile, **place)
 
