@@ -154,3 +154,31 @@ def test_a_time_law_scales_a_load_inside_an_element():
     np.testing.assert_allclose(np.asarray(at.element_point_follower[1]), [0, 0, 0, 0, 0.6, 0],
                                atol=1e-15)
     assert not np.any(np.asarray(at.element_point_follower[0]))
+
+
+def test_dynamic_iteration_matrix_paths_agree():
+    """``M beta' + C gamma' + K T(w)`` of both tangent paths, with dead and follower point
+    loads inside an element (one on a ramp)."""
+    from simsoft_jax import linalg, loads
+    from simsoft_jax.dynamics import element_inertia
+    from simsoft_jax.dynamics.residual import residual_and_iteration_matrix
+    from simsoft_jax.dynamics.scheme import iteration_factors
+    point = [{"kind": "force", "rod": "arm", "s": 0.3, "vector": [0.2, 5.0, -3.0]},
+             {"kind": "moment", "rod": "arm", "s": 0.3, "vector": [0.3, -0.4, 0.2],
+              "frame": "local", "profile": {"kind": "ramp", "t0": 0.0, "t1": 1.0}}]
+    model = loads.loads_at(sj.build_model(sj.Scene.from_dict(scene_with(point, "dynamic"))),
+                           0.5)
+    rng = np.random.default_rng(4)
+    R, p = jax.vmap(lie.compose_exp)(model.R0, model.p0,
+                                     jnp.asarray(0.05 * rng.standard_normal((3, 6))))
+    v, vd, w = (jnp.asarray(0.3 * rng.standard_normal((3, 6))) for _ in range(3))
+    beta_p, gamma_p = iteration_factors(0.8, 0.01)
+    inert = element_inertia(model)
+    out = [residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p,
+                                         None, tangent)
+           for tangent in ("closed_form", "autodiff")]
+    (r1, b1), (r2, b2) = out
+    S1, S2 = np.asarray(linalg.dense(b1)), np.asarray(linalg.dense(b2))
+    np.testing.assert_allclose(np.asarray(r1), np.asarray(r2), rtol=0,
+                               atol=1e-13 * np.abs(np.asarray(r2)).max())
+    np.testing.assert_allclose(S1, S2, rtol=0, atol=1e-10 * np.abs(S1).max())
