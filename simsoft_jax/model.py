@@ -88,9 +88,10 @@ class Model:
     distributed_world / distributed_local (E,3): force per unit length on each element,
     fixed in space / turning with the section. element_point_dead / element_point_follower
     (E,6): a point force and moment inside each element (placed by arc length between its
-    nodes: world / section frame) at ``element_point_xi`` (E,) (spec S38). These hold the loads with a constant
-    time law; loads with another time law are ``channels`` (:class:`~simsoft_jax.loads.
-    LoadChannels`, pattern times scale(t)); statics applies both at full scale.
+    nodes: world / section frame) at ``element_point_xi`` (E,) (spec S38). These hold the
+    loads with a constant time law; loads with another time law are ``channels``
+    (:class:`~simsoft_jax.loads.LoadChannels`, pattern times scale(t)); statics applies
+    both at full scale.
     gravity (3,): m/s^2. v0 (N,6): initial nodal body velocities ``[linear; angular]``
     (dynamics). drive_times (D,S), drive_displacement (D,S,3), drive_rotation (D,S,3):
     drive tables (world frame, relative to the start pose); drive_slide (D,3): unit world
