@@ -7,9 +7,10 @@ S61, S66), from vmapped element kernels.
 block-tridiagonal matrix. Element blocks by the ``tangent`` path: "closed_form"
 (closed-form stress and dead-load tangents, ``jacfwd`` of the gyroscopic, follower-load
 and in-element point-load terms) or "autodiff" (``jax.jacfwd`` of the sum of the element
-terms in the frame perturbations, velocities and accelerations). Element inertia (field maps and mass matrices) is computed from
-the Model's sectional inertia inside the trace (:func:`element_inertia`), so a changed
-``model.inertia`` changes everything it should, gradients included.
+terms in the frame perturbations, velocities and accelerations). Element inertia (field
+maps and mass matrices) is computed from the Model's sectional inertia inside the trace
+(:func:`element_inertia`), so a changed ``model.inertia`` changes everything it should,
+gradients included.
 """
 from __future__ import annotations
 
