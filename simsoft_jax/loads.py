@@ -22,7 +22,9 @@ import numpy as np
 class LoadChannels:
     """K load channels. kinds: static tuple of profile kinds. params (K,3): t0, t1, rate.
     table_t, table_scale (K, S): padded tables. Patterns: nodal_dead (K,N,6) world,
-    nodal_follower (K,N,6) local, distributed_world / distributed_local (K,E,3)."""
+    nodal_follower (K,N,6) local, distributed_world / distributed_local (K,E,3),
+    element_point_dead / element_point_follower (K,E,6) point loads inside elements (at
+    the Model's ``element_point_xi``)."""
     kinds: tuple
     params: jax.Array
     table_t: jax.Array
@@ -31,6 +33,8 @@ class LoadChannels:
     nodal_follower: jax.Array
     distributed_world: jax.Array
     distributed_local: jax.Array
+    element_point_dead: jax.Array
+    element_point_follower: jax.Array
 
     def replace(self, **changes) -> "LoadChannels":
         """A copy with some arrays replaced (same kinds: no recompilation)."""
@@ -40,7 +44,8 @@ class LoadChannels:
 jax.tree_util.register_dataclass(
     LoadChannels,
     data_fields=["params", "table_t", "table_scale", "nodal_dead", "nodal_follower",
-                 "distributed_world", "distributed_local"],
+                 "distributed_world", "distributed_local", "element_point_dead",
+                 "element_point_follower"],
     meta_fields=["kinds"],
 )
 
@@ -78,7 +83,10 @@ def _with_channels(model, s):
     return model.replace(nodal_dead=add(model.nodal_dead, ch.nodal_dead),
                          nodal_follower=add(model.nodal_follower, ch.nodal_follower),
                          distributed_world=add(model.distributed_world, ch.distributed_world),
-                         distributed_local=add(model.distributed_local, ch.distributed_local))
+                         distributed_local=add(model.distributed_local, ch.distributed_local),
+                         element_point_dead=add(model.element_point_dead, ch.element_point_dead),
+                         element_point_follower=add(model.element_point_follower,
+                                                    ch.element_point_follower))
 
 
 def loads_at(model, t):
@@ -100,6 +108,7 @@ def build_channels(loads, structure) -> LoadChannels:
     rods = {r.name: r for r in structure.rods}
     dead, follower = np.zeros((k, n, 6)), np.zeros((k, n, 6))
     dist_world, dist_local = np.zeros((k, e, 3)), np.zeros((k, e, 3))
+    point_dead, point_follower = np.zeros((k, e, 6)), np.zeros((k, e, 6))
     params = np.tile([0.0, 1.0, 0.0], (max(k, 0), 1))
     width = max([2] + [len(ld.profile.t) for ld in loads if ld.profile.kind == "table"])
     table_t = np.tile(np.arange(width, dtype=float), (k, 1))
@@ -109,6 +118,10 @@ def build_channels(loads, structure) -> LoadChannels:
         if load.kind == "distributed_force":
             target = dist_world if load.frame == "world" else dist_local
             target[i, info.first_element:info.first_element + info.elements] = load.vector
+        elif load.element is not None:
+            target = point_dead if load.frame == "world" else point_follower
+            cols = slice(0, 3) if load.kind == "force" else slice(3, 6)
+            target[i, info.first_element + load.element, cols] = load.vector
         else:
             target = dead if load.frame == "world" else follower
             cols = slice(0, 3) if load.kind == "force" else slice(3, 6)
@@ -126,4 +139,5 @@ def build_channels(loads, structure) -> LoadChannels:
     f64 = lambda a: jnp.asarray(a, jnp.float64)  # noqa: E731
     return LoadChannels(tuple(ld.profile.kind for ld in loads), f64(params),
                         f64(table_t), f64(table_scale), f64(dead), f64(follower),
-                        f64(dist_world), f64(dist_local))
+                        f64(dist_world), f64(dist_local), f64(point_dead),
+                        f64(point_follower))

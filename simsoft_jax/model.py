@@ -52,6 +52,8 @@ class Structure:
     has_nodal_follower: bool = False
     has_distributed_world: bool = False
     has_distributed_local: bool = False
+    has_point_dead: bool = False       # world-frame point loads by s inside an element
+    has_point_follower: bool = False   # section-frame point loads by s inside an element
     has_gravity: bool = False
     has_viscosity: bool = False   # Kelvin-Voigt terms traced in dynamics
     inertia_kind: str = "consistent"   # "consistent" | "lumped" element inertia
@@ -84,9 +86,12 @@ class Model:
     nodal_dead (N,6): world-frame force and moment per node (dead loads).
     nodal_follower (N,6): local-frame force and moment per node (follower loads).
     distributed_world / distributed_local (E,3): force per unit length on each element,
-    fixed in space / turning with the section. These four hold the loads with a constant
-    time law; loads with another time law are ``channels`` (:class:`~simsoft_jax.loads.
-    LoadChannels`, pattern times scale(t)); statics applies both at full scale.
+    fixed in space / turning with the section. element_point_dead / element_point_follower
+    (E,6): a point force and moment inside each element (placed by arc length between its
+    nodes: world / section frame) at ``element_point_xi`` (E,) (spec S38). These hold the
+    loads with a constant time law; loads with another time law are ``channels``
+    (:class:`~simsoft_jax.loads.LoadChannels`, pattern times scale(t)); statics applies
+    both at full scale.
     gravity (3,): m/s^2. v0 (N,6): initial nodal body velocities ``[linear; angular]``
     (dynamics). drive_times (D,S), drive_displacement (D,S,3), drive_rotation (D,S,3):
     drive tables (world frame, relative to the start pose); drive_slide (D,3): unit world
@@ -105,6 +110,9 @@ class Model:
     nodal_follower: jax.Array
     distributed_world: jax.Array
     distributed_local: jax.Array
+    element_point_dead: jax.Array
+    element_point_follower: jax.Array
+    element_point_xi: jax.Array
     gravity: jax.Array
     char_length: jax.Array
     channels: LoadChannels
@@ -277,6 +285,8 @@ def build_model(scene) -> Model:
     nodal_follower = np.zeros((n_nodes, 6))
     dist_world = np.zeros((n_elements, 3))
     dist_local = np.zeros((n_elements, 3))
+    point_dead, point_follower = np.zeros((n_elements, 6)), np.zeros((n_elements, 6))
+    point_xi = np.full(n_elements, 0.5)
     constant = [ld for ld in scene.loads if ld.profile.kind == "constant"]
     timed = [ld for ld in scene.loads if ld.profile.kind != "constant"]
     for load in constant:
@@ -285,8 +295,12 @@ def build_model(scene) -> Model:
             target = dist_world if load.frame == "world" else dist_local
             target[info.first_element:info.first_element + info.elements] += load.vector
             continue
-        target = nodal_dead if load.frame == "world" else nodal_follower
         cols = slice(0, 3) if load.kind == "force" else slice(3, 6)
+        if load.element is not None:
+            target = point_dead if load.frame == "world" else point_follower
+            target[info.first_element + load.element, cols] += load.vector
+            continue
+        target = nodal_dead if load.frame == "world" else nodal_follower
         target[info.first_node + load.node, cols] += load.vector
 
     d0 = np.concatenate(d0)
@@ -295,12 +309,18 @@ def build_model(scene) -> Model:
     V = np.concatenate(V)
     times, disp, rot, slide, drive_nodes, sliding = _drive_tables(scene, by_name)
     loads = scene.loads
+    for load in loads:
+        if load.element is not None:
+            point_xi[by_name[load.rod].first_element + load.element] = load.xi
+    at_node = [ld for ld in loads if ld.kind != "distributed_force" and ld.element is None]
+    inside = [ld for ld in loads if ld.element is not None]
     structure = Structure(
         n_nodes=n_nodes, element_nodes=tuple(elem_nodes), rods=tuple(rods),
         free=tuple(free.ravel().tolist()),
-        has_nodal_dead=any(ld.kind != "distributed_force" and ld.frame == "world" for ld in loads),
-        has_nodal_follower=any(ld.kind != "distributed_force" and ld.frame == "local"
-                               for ld in loads),
+        has_nodal_dead=any(ld.frame == "world" for ld in at_node),
+        has_nodal_follower=any(ld.frame == "local" for ld in at_node),
+        has_point_dead=any(ld.frame == "world" for ld in inside),
+        has_point_follower=any(ld.frame == "local" for ld in inside),
         has_distributed_world=any(ld.kind == "distributed_force" and ld.frame == "world"
                                   for ld in loads),
         has_distributed_local=any(ld.kind == "distributed_force" and ld.frame == "local"
@@ -317,6 +337,8 @@ def build_model(scene) -> Model:
         inertia=f64(np.concatenate(M)), viscosity=f64(V),
         nodal_dead=f64(nodal_dead), nodal_follower=f64(nodal_follower),
         distributed_world=f64(dist_world), distributed_local=f64(dist_local),
+        element_point_dead=f64(point_dead), element_point_follower=f64(point_follower),
+        element_point_xi=f64(point_xi),
         gravity=f64(gravity), char_length=f64(length.mean()),
         channels=build_channels(timed, structure),
         v0=f64(_initial_velocities(scene, by_name, R0, p0)),

@@ -25,7 +25,7 @@ from ._validate import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, fa
 from .materials import BUILTIN_MATERIALS, Material, get_material
 from .scene_initial import parse_initial
 from .scene_limits import (MAX_ELEMENTS, MAX_STEPS, check_elements, check_loads_on_held_nodes,
-                           warn_short_features)
+                           check_point_loads_in_elements, warn_short_features)
 from .scene_specs import (ConstraintSpec, GeometrySpec, InitialVelocitySpec, LoadSpec,
                           ProfileSpec, RodSpec, SegmentSpec, SolverSettings)
 from .sections import (Section, circle, custom_inertia, custom_stiffness, rectangle,
@@ -138,6 +138,7 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
     if solver.kind == "dynamic":
         warn_short_features(loads, constraints, solver.dt)
     check_loads_on_held_nodes(raw.get("loads", []), loads, constraints)
+    check_point_loads_in_elements(raw.get("loads", []), loads)
     if solver.kind == "static":
         for i, c in enumerate(constraints):
             if c.kind == "drive" and (np.any(c.displacement) or np.any(c.rotation)):
@@ -395,12 +396,31 @@ def _node(item: dict, path: str, rod: RodSpec) -> int:
             fail(join(path, "node"), f"out of range for rod {rod.name!r} with {n} nodes "
                  f"(allowed {-n}..{n - 1}), got {node}")
         return node % n
+    return int(round(_arc_position(item, path, rod)))
+
+
+def _arc_position(item: dict, path: str, rod: RodSpec) -> float:
+    """``s`` (arc length) in element units: ``s / L * elements`` (nodes are evenly spaced)."""
     s = number(item["s"], join(path, "s"))
     length = rod.geometry.arc_length
     if not -1e-12 * length <= s <= length * (1.0 + 1e-12):
         fail(join(path, "s"), f"must be in [0, {length:g}] (rod {rod.name!r} arc length), "
              f"got {s}")
-    return int(round(min(max(s, 0.0), length) / length * rod.elements))
+    return min(max(s, 0.0), length) / length * rod.elements
+
+
+def _load_place(ld: dict, path: str, rod: RodSpec) -> dict[str, Any]:
+    """Where a point load acts: ``node``, or for ``s`` between two nodes its element and
+    ``xi = (s - s_A)/L_e`` (spec S38: distributed onto the element, not rounded); ``s``
+    within 1e-12 (element units) of a node acts on that node."""
+    if "s" not in ld or "node" in ld:
+        return {"node": _node(ld, path, rod)}
+    x = _arc_position(ld, path, rod)
+    node = round(x)
+    if abs(x - node) <= 1e-12:
+        return {"node": int(node)}
+    element = min(int(np.floor(x)), rod.elements - 1)
+    return {"node": None, "element": element, "xi": x - element}
 
 
 def _parse_constraints(items: list[dict], rods: dict[str, RodSpec]) -> tuple:
@@ -469,7 +489,7 @@ def _parse_load(ld: dict, path: str, rods: dict[str, RodSpec], base_dir: Path) -
     check_keys(ld, path, ("kind", "rod", *where, "vector", "frame", "profile"),
                required=("rod", "vector"))
     rod = _rod_of(ld, path, rods)
-    node = None if kind == "distributed_force" else _node(ld, path, rod)
+    place = {"node": None} if kind == "distributed_force" else _load_place(ld, path, rod)
     vec = vector(ld["vector"], join(path, "vector"))
     frame = choice(ld.get("frame", "world"), join(path, "frame"), ("world", "local"))
     profile = _parse_profile(ld.get("profile", {"kind": "constant"}), join(path, "profile"),
@@ -477,8 +497,8 @@ def _parse_load(ld: dict, path: str, rods: dict[str, RodSpec], base_dir: Path) -
     if profile.kind == "table" and "file" in ld.get("profile", {}):
         ld["profile"] = {"kind": "table", "t": profile.t.tolist(),
                          "scale": profile.scale.tolist()}  # keep raw self-contained
-    return LoadSpec(kind=kind, rod=rod.name, node=node, vector=readonly(vec), frame=frame,
-                    profile=profile)
+    return LoadSpec(kind=kind, rod=rod.name, vector=readonly(vec), frame=frame,
+                    profile=profile, **place)
 
 
 def _parse_profile(value: Any, path: str, base_dir: Path) -> ProfileSpec:

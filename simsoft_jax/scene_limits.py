@@ -42,10 +42,11 @@ def warn_short_features(loads: tuple, constraints: tuple, dt: float) -> None:
 
 
 def check_loads_on_held_nodes(items: list, loads: tuple, constraints: tuple) -> None:
-    """A point load placed by arc length ``s`` is rounded to the nearest node; when that
-    node's constraint holds every dof the load acts on (a force on a clamped, pinned,
+    """A point load placed by arc length ``s`` exactly on a node acts on that node; when
+    the node's constraint holds every dof the load acts on (a force on a clamped, pinned,
     hinged or driven node; a moment on a clamped or driven one) the load would vanish
-    without a trace: reject it, naming the load's ``s`` key."""
+    without a trace: reject it, naming the load's ``s`` key. (Loads by ``s`` between
+    nodes act on their element and are not rounded.)"""
     held = {(c.rod, c.node): c.kind for c in constraints
             if not (c.kind == "drive" and c.slides_along is not None)}
     for i, (item, load) in enumerate(zip(items, loads)):
@@ -53,9 +54,24 @@ def check_loads_on_held_nodes(items: list, loads: tuple, constraints: tuple) -> 
         if ("s" not in item or kind is None
                 or (load.kind == "moment" and kind not in ("clamp", "drive"))):
             continue
-        fail(join(index("loads", i), "s"), f"s = {item['s']} is rounded to node "
+        fail(join(index("loads", i), "s"), f"s = {item['s']} is node "
              f"{load.node} of rod {load.rod!r}, which a {kind} holds: the {load.kind} "
              "would have no effect there; move it (or use more elements)")
+
+
+def check_point_loads_in_elements(items: list, loads: tuple) -> None:
+    """The model holds one point-load place per element: loads by ``s`` inside the same
+    element must share it (``xi`` within 1e-12); else reject the second, naming its key."""
+    places: dict[tuple[str, int], tuple[float, int]] = {}
+    for i, load in enumerate(loads):
+        if load.element is None:
+            continue
+        xi, first = places.setdefault((load.rod, load.element), (load.xi, i))
+        if abs(xi - load.xi) > 1e-12:
+            fail(join(index("loads", i), "s"), f"s = {items[i]['s']} lies in element "
+                 f"{load.element} of rod {load.rod!r}, which loads[{first}] already loads "
+                 "at another place; one point load place per element is supported: "
+                 "use more elements or put the loads at the same s")
 
 
 def check_elements(geometry: GeometrySpec, elements: int, path: str) -> None:

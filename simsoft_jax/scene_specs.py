@@ -111,10 +111,12 @@ class ProfileSpec(SpecBase):
 class LoadSpec(SpecBase):
     kind: str                         # "force" | "moment" | "distributed_force"
     rod: str
-    node: int | None                  # None for distributed_force
+    node: int | None                  # None for distributed_force and loads inside an element
     vector: np.ndarray                # (3,)
     frame: str                        # "world" (dead) | "local" (follower)
     profile: ProfileSpec
+    element: int | None = None        # a load by s between two nodes: its element in the rod
+    xi: float | None = None           # and its place there, (s - s_A)/L_e in (0, 1)
 
 
 @dataclass(frozen=True, eq=False)

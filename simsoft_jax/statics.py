@@ -139,6 +139,10 @@ def load_scale(model: Model):
     if s.has_nodal_follower:
         nodal = nodal + jnp.abs(model.nodal_follower)
     total = jnp.sum(weighted_norm(model, nodal * mask) ** 2)
+    if s.has_point_dead or s.has_point_follower:
+        point = jnp.abs(model.element_point_dead) + jnp.abs(model.element_point_follower)
+        total = (total + jnp.sum(point[:, :3] ** 2)
+                 + jnp.sum((point[:, 3:] / model.char_length) ** 2))
     q = jnp.zeros_like(model.distributed_world)
     if s.has_gravity:
         q = q + model.inertia[:, :1] * model.gravity

@@ -401,9 +401,13 @@ def test_load_tables_and_constraint_masks_two_rods():
     dead[8, :3] = np.add(v1, v2)               # node -2 of b is node 3 of b: they add up
     follower = np.zeros((10, 6))
     follower[5, :3] = f2
-    follower[7, 3:] = m2                       # s = 0.55 of the arc -> nearest node, 2 of 4
     np.testing.assert_allclose(arr(m.nodal_dead), dead, atol=0)
     np.testing.assert_allclose(arr(m.nodal_follower), follower, atol=0)
+    point = np.zeros((8, 6))
+    point[6, 3:] = m2                          # s = 0.55 of the arc: element 2 of b, xi 0.2
+    np.testing.assert_allclose(arr(m.element_point_follower), point, atol=0)
+    np.testing.assert_allclose(arr(m.element_point_xi[6]), 0.2, rtol=1e-12)
+    assert st.has_point_follower and not st.has_point_dead
     dw, dl = np.zeros((8, 3)), np.zeros((8, 3))
     dw[:4] = qw
     dl[4:] = ql

@@ -221,12 +221,13 @@ def test_node_resolution_negative_and_arc_length():
     d = mutate((("loads",), [
         {"kind": "force", "rod": "arm", "node": -1, "vector": [1, 0, 0]},
         {"kind": "force", "rod": "arm", "node": -5, "vector": [1, 0, 0]},
-        {"kind": "moment", "rod": "arm", "s": 0.26, "vector": [1, 0, 0]},   # nearest: 0.25
+        {"kind": "moment", "rod": "arm", "s": 0.26, "vector": [1, 0, 0]},   # inside element 2
         {"kind": "moment", "rod": "arm", "s": 0.5, "vector": [1, 0, 0]},
         {"kind": "distributed_force", "rod": "arm", "vector": [0, 0, -1]},
     ]))
-    nodes = [ld.node for ld in Scene.from_dict(d).loads]
-    assert nodes == [4, 0, 2, 4, None]
+    loads = Scene.from_dict(d).loads
+    assert [ld.node for ld in loads] == [4, 0, None, 4, None]
+    assert loads[2].element == 2 and loads[2].xi == pytest.approx(0.08, abs=1e-12)  # not rounded
 
 
 def test_arc_lengths_of_geometries():
@@ -345,7 +346,9 @@ angular = [0.0, 3.14159, 0.0]
     a, b = load_scene(tmp_path / "a.toml"), load_scene(tmp_path / "a.json")
     assert a.source.endswith("a.toml") and b.source.endswith("a.json")
     assert a.replace(source=None) == b.replace(source=None)
-    assert a.loads[0].node == round(0.7 / (0.5 * math.pi / 2) * 8)
+    x = 0.7 / (0.5 * math.pi / 2) * 8              # inside element 7: not rounded
+    assert a.loads[0].node is None and a.loads[0].element == 7
+    assert a.loads[0].xi == pytest.approx(x - 7, abs=1e-12)
     np.testing.assert_array_equal(a.initial_velocity[0].linear, np.zeros(3))
 
 

@@ -102,21 +102,23 @@ def test_static_scene_rejects_a_moving_drive():
 
 
 def test_load_by_arc_length_on_a_held_node_is_reported():
-    """4 elements of 0.25 m: s = 0.1 rounds to node 0 (clamped) and the force would
-    vanish; s = 0.2 rounds to node 1 and is kept; a moment on a pinned node acts."""
+    """4 elements of 0.25 m: s = 0 is node 0 (clamped) and the force would vanish;
+    s = 0.1 lies inside element 0 and acts there (not rounded); a moment on a pinned
+    node acts; a force by s on the pinned tip is rejected."""
     straight = {"kind": "straight", "length": 1.0}
-    force = {"kind": "force", "rod": "r", "s": 0.1, "vector": [0, 0, 1.0]}
-    with pytest.raises(ValueError, match=r"^loads\[0\]\.s: s = 0.1 is rounded to node 0 of rod "
+    force = {"kind": "force", "rod": "r", "s": 0.0, "vector": [0, 0, 1.0]}
+    with pytest.raises(ValueError, match=r"^loads\[0\]\.s: s = 0.0 is node 0 of rod "
                                          r"'r', which a clamp holds: the force would have no"):
         Scene.from_dict(scene(straight, loads=[force]))
-    assert Scene.from_dict(scene(straight, loads=[{**force, "s": 0.2}])).loads[0].node == 1
+    inside = Scene.from_dict(scene(straight, loads=[{**force, "s": 0.1}])).loads[0]
+    assert inside.node is None and inside.element == 0 and inside.xi == pytest.approx(0.4)
     pins = [{"kind": "pin", "rod": "r", "node": 0}, {"kind": "pin", "rod": "r", "node": -1}]
-    moment = {"kind": "moment", "rod": "r", "s": 0.99, "vector": [0, 1.0, 0]}
+    moment = {"kind": "moment", "rod": "r", "s": 1.0, "vector": [0, 1.0, 0]}
     assert Scene.from_dict(scene(straight, kind="dynamic", constraints=pins,
                                  loads=[moment])).loads[0].node == 4
     with pytest.raises(ValueError, match=r"^loads\[0\]\.s: .* which a pin holds: the force"):
         Scene.from_dict(scene(straight, kind="dynamic", constraints=pins,
-                              loads=[{**force, "s": 0.99}]))
+                              loads=[{**force, "s": 1.0}]))
 
 
 @pytest.mark.parametrize("rotation, key, message", [

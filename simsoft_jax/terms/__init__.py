@@ -38,7 +38,9 @@ class Element(NamedTuple):
 class ElementData(NamedTuple):
     """An element's model arrays: d0 (6,), length (m), stiffness, inertia, viscosity (6,)
     diagonals, q_world, q_local (3,) distributed loads (N/m), gravity (3,) (m/s^2), maps
-    (G,6,12) and mass (12,12) (dynamics; see :mod:`simsoft_jax.inertia`)."""
+    (G,6,12) and mass (12,12) (dynamics; see :mod:`simsoft_jax.inertia`), point_dead,
+    point_follower (6,) a point load inside the element at point_xi ()
+    (:mod:`.point_in_element`)."""
     d0: jax.Array
     length: jax.Array
     stiffness: jax.Array
@@ -49,6 +51,9 @@ class ElementData(NamedTuple):
     gravity: jax.Array
     maps: jax.Array
     mass: jax.Array
+    point_dead: jax.Array
+    point_follower: jax.Array
+    point_xi: jax.Array
 
 
 def element_state(RA, pA, RB, pB, ve, vde) -> Element:

@@ -12,7 +12,8 @@ import jax
 import jax.numpy as jnp
 
 from .. import lie
-from . import Element, distributed, elastic, element_state, inertia, nodal, viscous
+from . import (Element, distributed, elastic, element_state, inertia, nodal,
+               point_in_element, viscous)
 
 
 def element_residual(structure, lam, dynamic: bool):
@@ -32,6 +33,9 @@ def element_residual(structure, lam, dynamic: bool):
                                            s.has_distributed_world)
         if s.has_distributed_local:
             r = r + distributed.follower_force(el, data, lam)
+        if s.has_point_dead or s.has_point_follower:
+            r = r + point_in_element.force(el, data, lam, s.has_point_dead,
+                                           s.has_point_follower)
         return r
 
     return residual
