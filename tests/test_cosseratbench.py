@@ -32,13 +32,16 @@ def test_entry_point_names_the_adapter_and_it_is_a_solver():
     assert capstan.outcome == "unsupported"
 
 
-def test_cantilever_tip_deflection_within_1e_4_at_20_elements():
-    """Measured 3.2e-5 (the reference itself neglects shear and geometric nonlinearity,
-    each under 1e-3); a static solve, so the run has settled exactly."""
+def test_cantilever_tip_deflection_within_1e_3_at_20_elements():
+    """The reference neglects shear (+1.0e-3 of the deflection here, ``3 EI / (k G A L^2)``)
+    and geometric nonlinearity (about -4e-4), so 1e-3 is as close as it can judge. Measured
+    3.2e-5 at 20 elements (the elements' error, -6e-4, and those two nearly cancel there;
+    the converged value is 5.9e-4, see docs/cosseratbench.md). A static solve: the run has
+    settled exactly."""
     result = cosseratbench.run(registry.load_experiment("cantilever"), SimsoftJaxSolver(),
                                n_elements=20)
     assert result.outcome == "completed"
-    assert result.metrics["tip_deflection_error"] < 1e-4
+    assert result.metrics["tip_deflection_error"] < 1e-3
     assert result.metrics["settling_residual"] == 0.0
 
 
