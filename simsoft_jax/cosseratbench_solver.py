@@ -93,8 +93,9 @@ def _end_constraint(rod, name, end, node):
     return drive
 
 
-def _scene_dict(scenario, n_elements, static, damping, dt=None, steps=None, save_every=None):
-    """The scene (a dict, see docs/scene-format.md) of a benchmark scenario."""
+def _scene_dict(scenario, n_elements, damping=0.0, dt=None):
+    """The scene (a dict, see docs/scene-format.md) of a benchmark scenario: static when
+    ``dt`` is None, else dynamic with time step ``dt`` (s) and mass damping ``damping`` (1/s)."""
     if scenario.obstacles:
         raise NotImplementedError("simsoft_jax does not model contact with obstacles")
     rods, constraints, loads = [], [], []
@@ -103,6 +104,9 @@ def _scene_dict(scenario, n_elements, static, damping, dt=None, steps=None, save
         nodes = rod.nodes(n_elements)
         Rb = _base_rotation(nodes, rod.normal)
         m = rod.material
+        if m.youngs_modulus / (2.0 * m.shear_modulus) - 1.0 > 0.5 + 1e-9:
+            raise NotImplementedError("a shear modulus below E/3 (Poisson's ratio above 0.5) "
+                                      "is outside simsoft_jax's isotropic material")
         material = {"E": m.youngs_modulus, "G": m.shear_modulus, "density": m.density}
         if damping:
             material["mass_damping"] = damping
@@ -123,11 +127,11 @@ def _scene_dict(scenario, n_elements, static, damping, dt=None, steps=None, save
                           "vector": list(load.force)})
     scene = {"name": "cosseratbench", "rods": rods, "constraints": constraints,
              "loads": loads}
-    if static:
+    if dt is None:
         scene["solver"] = {"kind": "static"}
     else:
-        scene["solver"] = {"kind": "dynamic", "t_end": dt * steps, "dt": dt,
-                           "rho_inf": RHO_INF, "save_every": save_every}
+        scene["solver"] = {"kind": "dynamic", "t_end": scenario.duration, "dt": dt,
+                           "rho_inf": RHO_INF}
     if any(scenario.gravity):
         scene["gravity"] = {"vector": list(scenario.gravity)}
     return scene
@@ -191,7 +195,7 @@ class SimsoftJaxSolver:
         (it is dynamic, an end is driven, or the supports leave a rigid motion free)."""
         if not scenario.quasi_static or _moves(scenario):
             return None
-        scene = _scene_dict(scenario, n_elements, static=True, damping=0.0)
+        scene = _scene_dict(scenario, n_elements)
         try:
             return build_model(Scene.from_dict(scene))
         except ValueError as error:
@@ -222,8 +226,7 @@ class SimsoftJaxSolver:
                                 np.repeat(np.asarray(eq.p)[None], n_frames - 1, axis=0)])
             return _trajectory(model, times, R, p)
         dt, k = self._steps(scenario, n_frames)
-        scene = _scene_dict(scenario, n_elements, static=False,
-                            damping=self._damping(scenario), dt=dt, steps=k, save_every=k)
+        scene = _scene_dict(scenario, n_elements, self._damping(scenario), dt)
         with warnings.catch_warnings():
             # dt is at most the drives' sample spacing (_steps) up to round-off, which
             # the scene's "samples closer than dt" warning would report.
