@@ -127,7 +127,7 @@ def element_data(model: Model, maps=None, masses=None) -> ElementData:
                        model.viscosity, model.distributed_world, model.distributed_local,
                        jnp.broadcast_to(model.gravity, (n, 3)), maps, masses,
                        model.element_point_dead, model.element_point_follower,
-                       model.element_point_xi)
+                       model.element_point_xi, model.mass_damping)
 
 
 def element_poses(model: Model, R, p):

@@ -56,6 +56,10 @@ class Material:
         nu: Poisson's ratio, dimensionless, in (-1, 0.5].
         viscosity: shear viscosity mu, Pa s, >= 0; enters the Kelvin-Voigt damping matrix
             ``Upsilon = mu diag(3A, A, A, J_t, 3 I_y, 3 I_z)`` (spec (S28), seed eq. (9) corrected).
+        mass_damping: mass-proportional (Rayleigh) damping constant c, 1/s, >= 0: a force
+            ``-c M v`` against the nodal velocities, weighted by the element mass matrix
+            (:mod:`simsoft_jax.terms.mass_damping`); each vibration mode decays as
+            ``exp(-c t / 2)``.
         name: label used in error messages and scene files.
     """
 
@@ -65,11 +69,14 @@ class Material:
     nu: float | None = None
     viscosity: float = 0.0
     name: str = "custom"
+    mass_damping: float = 0.0
 
     def __post_init__(self) -> None:
         E = check_number("E", self.E)
         density = check_number("density", self.density)
         viscosity = check_number("viscosity", self.viscosity, ">= 0", lambda x: x >= 0)
+        mass_damping = check_number("mass_damping", self.mass_damping, ">= 0",
+                                    lambda x: x >= 0)
         if not isinstance(self.name, str) or not self.name:
             raise ValueError(f"name: must be a non-empty string, got {self.name!r}")
         if (self.G is None) == (self.nu is None):
@@ -88,7 +95,7 @@ class Material:
                 raise ValueError(
                     f"G: implies nu = E/(2G) - 1 = {nu:.6g}, outside (-1, 0.5] (E = {E:.6g}, G = {G:.6g})")
         for field_name, value in (("E", E), ("density", density), ("G", G), ("nu", nu),
-                                  ("viscosity", viscosity)):
+                                  ("viscosity", viscosity), ("mass_damping", mass_damping)):
             object.__setattr__(self, field_name, value)
 
     def with_viscosity(self, mu: float) -> Material:

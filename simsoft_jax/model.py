@@ -56,6 +56,7 @@ class Structure:
     has_point_follower: bool = False   # section-frame point loads by s inside an element
     has_gravity: bool = False
     has_viscosity: bool = False   # Kelvin-Voigt terms traced in dynamics
+    has_mass_damping: bool = False  # mass-proportional damping traced in dynamics
     inertia_kind: str = "consistent"   # "consistent" | "lumped" element inertia
     drive_nodes: tuple = ()       # node index of each drive
     slide_drives: tuple = ()      # indices (into the drives) of the sliding ones
@@ -83,6 +84,8 @@ class Model:
     local axes in world coordinates). d0 (E,6): stress-free relative twists (spec S34).
     length (E,): reference element lengths ``|d0_U|`` (S35). stiffness, inertia,
     viscosity (E,6): sectional diagonals ``K``, ``M``, ``Upsilon`` (S28, S29).
+    mass_damping (E,): mass-proportional damping constant of each element (1/s,
+    :mod:`~simsoft_jax.terms.mass_damping`).
     nodal_dead (N,6): world-frame force and moment per node (dead loads).
     nodal_follower (N,6): local-frame force and moment per node (follower loads).
     distributed_world / distributed_local (E,3): force per unit length on each element,
@@ -106,6 +109,7 @@ class Model:
     stiffness: jax.Array
     inertia: jax.Array
     viscosity: jax.Array
+    mass_damping: jax.Array
     nodal_dead: jax.Array
     nodal_follower: jax.Array
     distributed_world: jax.Array
@@ -248,7 +252,7 @@ def build_model(scene) -> Model:
     ``channels``; the scene's ``[solver].inertia`` chooses the element inertia (static).
     """
     rods, elem_nodes = [], []
-    R0, p0, d0, K, M, V = [], [], [], [], [], []
+    R0, p0, d0, K, M, V, C = [], [], [], [], [], [], []
     node_offset = element_offset = 0
     for rod in scene.rods:
         R_ref, p_ref = _world_frames(rod)
@@ -259,6 +263,8 @@ def build_model(scene) -> Model:
             K.append(np.tile(Kr, (piece.elements, 1)))
             M.append(np.tile(Mr, (piece.elements, 1)))
             V.append(np.tile(Vr, (piece.elements, 1)))
+            material = getattr(piece, "material", None)
+            C.append(np.full(piece.elements, getattr(material, "mass_damping", 0.0)))
         R0.append(R_init)
         p0.append(p_init)
         rods.append(RodInfo(rod.name, node_offset, rod.elements + 1, element_offset,
@@ -327,6 +333,7 @@ def build_model(scene) -> Model:
                                   for ld in loads),
         has_gravity=scene.gravity is not None,
         has_viscosity=bool(np.any(V != 0.0)),
+        has_mass_damping=bool(np.any(np.concatenate(C) != 0.0)),
         inertia_kind=getattr(scene.solver, "inertia", "consistent"),
         drive_nodes=drive_nodes, slide_drives=sliding,
     )
@@ -334,7 +341,7 @@ def build_model(scene) -> Model:
     return Model(
         structure=structure, R0=f64(R0), p0=f64(p0),
         d0=f64(d0), length=f64(length), stiffness=f64(np.concatenate(K)),
-        inertia=f64(np.concatenate(M)), viscosity=f64(V),
+        inertia=f64(np.concatenate(M)), viscosity=f64(V), mass_damping=f64(np.concatenate(C)),
         nodal_dead=f64(nodal_dead), nodal_follower=f64(nodal_follower),
         distributed_world=f64(dist_world), distributed_local=f64(dist_local),
         element_point_dead=f64(point_dead), element_point_follower=f64(point_follower),

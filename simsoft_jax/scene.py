@@ -78,7 +78,7 @@ _TOP_KEYS = ("name", "solver", "gravity", "materials", "rods", "constraints", "l
              "initial_velocity")
 _SOLVER_KEYS = ("kind", "tolerance", "max_iterations", "load_steps", "t_end", "dt",
                 "rho_inf", "save_every", "inertia", "tangent", "max_steps")
-_MATERIAL_KEYS = ("name", "E", "G", "nu", "density", "viscosity")
+_MATERIAL_KEYS = ("name", "E", "G", "nu", "density", "viscosity", "mass_damping")
 _ROD_KEYS = ("name", "material", "section", "shear_coefficients", "stiffness", "inertia",
              "elements", "geometry", "base", "initial", "segments")
 _SEGMENT_KEYS = ("elements", "material", "section", "shear_coefficients", "stiffness",

@@ -52,7 +52,7 @@ def _element_args(model: Model, inert: ElementInertia, R, p, v, vd):
     vde = jnp.concatenate([vd[a], vd[a + 1]], axis=1)
     return (R[a], d, ve, vde, inert.maps, inert.masses, model.d0, model.length,
             model.stiffness, model.inertia, model.viscosity, model.distributed_world,
-            model.distributed_local)
+            model.distributed_local, model.mass_damping)
 
 
 def _element_velocities(model: Model, v, vd):
@@ -88,7 +88,8 @@ def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p,
     dead, follower = dead_distributed_force(model, 1.0), follower_distributed_load(model, 1.0)
     T = jax.vmap(lie.tangent_se3)(w)
 
-    def value_and_blocks(RA, d, ve, vde, maps, mass, d0, length, stiffness, inert, visc, qw, ql):
+    def value_and_blocks(RA, d, ve, vde, maps, mass, d0, length, stiffness, inert, visc, qw, ql,
+                         c_mass):
         # K_t: closed-form stress and load tangents (spec S42, S44), in the chart of S37;
         # C_t: gyroscopic (jacfwd in the 12 velocities) and viscous P^T Ups P / L (S42)
         P = element.strain_map(d)
@@ -101,6 +102,8 @@ def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p,
             stress = stress + visc * rate(d)
             stress_jac = stress_jac + visc[:, None] * jax.jacfwd(rate)(d)
             C = C + P.T @ (visc[:, None] * P) / length
+        if s.has_mass_damping:  # c M_e v_e: M_e is fixed by the reference shape, so C only
+            g, C = g + c_mass * (mass @ ve), C + c_mass * mass
         f, K = element_force_and_tangent(P, d, stress, stress_jac, RA, length, dead, follower,
                                          inert[0], qw, ql)
         return f + mass @ vde + g, K, C, mass

@@ -79,13 +79,17 @@ def initial_state(model: Model, t0=0.0) -> State:
 
 
 def _check_viscosity(model: Model):
-    """A structure built without Kelvin-Voigt terms cannot be given viscosities later."""
-    if model.structure.has_viscosity or isinstance(model.viscosity, jax.core.Tracer):
-        return
-    if np.any(np.asarray(model.viscosity) != 0.0):
-        raise ValueError("viscosity: this model was built without viscous terms (all "
-                         "viscosities zero), so non-zero viscosities would be ignored; "
-                         "build it from a scene whose material has a viscosity")
+    """A structure built without Kelvin-Voigt (or mass-proportional damping) terms cannot
+    be given viscosities (or mass-damping constants) later."""
+    s = model.structure
+    for key, traced, what in (("viscosity", s.has_viscosity, "viscous terms"),
+                              ("mass_damping", s.has_mass_damping, "mass damping")):
+        value = getattr(model, key)
+        if traced or isinstance(value, jax.core.Tracer) or not np.any(np.asarray(value) != 0.0):
+            continue
+        raise ValueError(f"{key}: this model was built without {what} (all {key} values "
+                         f"zero), so non-zero values would be ignored; build it from a "
+                         f"scene whose material has a {key}")
 
 
 def simulate(model: Model, settings: DynamicSettings, state: State | None = None,

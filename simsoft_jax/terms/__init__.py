@@ -40,7 +40,8 @@ class ElementData(NamedTuple):
     diagonals, q_world, q_local (3,) distributed loads (N/m), gravity (3,) (m/s^2), maps
     (G,6,12) and mass (12,12) (dynamics; see :mod:`simsoft_jax.inertia`), point_dead,
     point_follower (6,) a point load inside the element at point_xi ()
-    (:mod:`.point_in_element`)."""
+    (:mod:`.point_in_element`), mass_damping () mass-proportional damping constant (1/s,
+    :mod:`.mass_damping`; None in statics)."""
     d0: jax.Array
     length: jax.Array
     stiffness: jax.Array
@@ -54,6 +55,7 @@ class ElementData(NamedTuple):
     point_dead: jax.Array
     point_follower: jax.Array
     point_xi: jax.Array
+    mass_damping: jax.Array = None
 
 
 def element_state(RA, pA, RB, pB, ve, vde) -> Element:

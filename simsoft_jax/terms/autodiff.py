@@ -12,13 +12,14 @@ import jax
 import jax.numpy as jnp
 
 from .. import lie
-from . import (Element, distributed, elastic, element_state, inertia, nodal,
+from . import (Element, distributed, elastic, element_state, inertia, mass_damping, nodal,
                point_in_element, viscous)
 
 
 def element_residual(structure, lam, dynamic: bool):
     """``f(el: Element, data: ElementData) -> (12,)``: the sum of the element terms of
-    ``structure`` at load level ``lam`` (inertia and viscosity only when ``dynamic``)."""
+    ``structure`` at load level ``lam`` (inertia, viscosity and mass damping only when
+    ``dynamic``)."""
     s = structure
     dead = s.has_gravity or s.has_distributed_world
 
@@ -28,6 +29,8 @@ def element_residual(structure, lam, dynamic: bool):
             r = r + inertia.force(el, data, s.inertia_kind)
             if s.has_viscosity:
                 r = r + viscous.force(el, data)
+            if s.has_mass_damping:
+                r = r + mass_damping.force(el, data)
         if dead:
             r = r + distributed.dead_force(el, data, lam, s.has_gravity,
                                            s.has_distributed_world)
