@@ -16,6 +16,13 @@ from .scene_specs import GeometrySpec
 MAX_STEPS = 1_000_000      # time steps a dynamic run may take unless solver.max_steps says more
 MAX_ELEMENTS = 20_000      # elements in one scene (all rods)
 MAX_ELEMENT_TURN_DEG = 90.0  # stress-free rotation of one element (helical element's range)
+ROUND_OFF = 1e-9           # relative: a feature as long as dt up to round-off is not shorter
+
+
+def _shorter_than(span: float, dt: float) -> bool:
+    """``span < dt`` beyond round-off (samples spaced by exactly dt, as written in decimal
+    or computed as ``k * dt``, do not count as shorter)."""
+    return span < dt * (1.0 - ROUND_OFF)
 
 
 def warn_short_features(loads: tuple, constraints: tuple, dt: float) -> None:
@@ -25,16 +32,16 @@ def warn_short_features(loads: tuple, constraints: tuple, dt: float) -> None:
     pulse narrower than dt may be missed or its size misjudged."""
     for i, load in enumerate(loads):
         prof, path = load.profile, join(index("loads", i), "profile")
-        if prof.kind in ("ramp", "smoothstep") and prof.t1 - prof.t0 < dt:
+        if prof.kind in ("ramp", "smoothstep") and _shorter_than(prof.t1 - prof.t0, dt):
             warnings.warn(f"{path}: rises in t1 - t0 = {prof.t1 - prof.t0:g} s, less than "
                           f"solver.dt = {dt:g} s; the steps sample it coarsely (reduce dt)",
                           stacklevel=4)
-        elif prof.kind == "table" and len(prof.t) > 1 and np.diff(prof.t).min() < dt:
+        elif prof.kind == "table" and len(prof.t) > 1 and _shorter_than(np.diff(prof.t).min(), dt):
             warnings.warn(f"{path}.t: samples {np.diff(prof.t).min():g} s apart, less than "
                           f"solver.dt = {dt:g} s; a pulse narrower than dt may be missed "
                           "(reduce dt)", stacklevel=4)
     for i, c in enumerate(constraints):
-        if c.kind == "drive" and len(c.times) > 1 and np.diff(c.times).min() < dt:
+        if c.kind == "drive" and len(c.times) > 1 and _shorter_than(np.diff(c.times).min(), dt):
             warnings.warn(f"{index('constraints', i)}.times: samples "
                           f"{np.diff(c.times).min():g} s apart, less than solver.dt = "
                           f"{dt:g} s; the steps sample the drive coarsely (reduce dt)",

@@ -115,3 +115,15 @@ def test_drive_samples_closer_than_dt_warn():
                          "displacement": [[0, 0, 0], [0, 0, 0.001]]}]
     with pytest.warns(UserWarning, match=r"^constraints\[0\]\.times: samples 0.004 s apart"):
         sj.Scene.from_dict(d)
+
+
+def test_drive_samples_spaced_by_dt_up_to_round_off_do_not_warn():
+    d = falling_spinner(0.1, 0.01)
+    times = [k * 0.01 for k in range(11)]
+    gaps = [b - a for a, b in zip(times, times[1:])]
+    assert min(gaps) < 0.01            # the round-off the check must tolerate
+    d["constraints"] = [{"kind": "drive", "rod": "rod", "node": 0, "times": times,
+                         "displacement": [[0.0, 0.0, 1e-4 * k] for k in range(11)]}]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sj.Scene.from_dict(d)
