@@ -148,6 +148,8 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
                      "\"dynamic\"")
     if solver.kind == "static":  # rigid-body motion left free makes statics singular
         for i, rod in enumerate(rods.values()):
+            if rod.initial_points is not None or rod.initial_rotations is not None:
+                continue   # checked where it starts, by model.build_model
             held = [c for c in constraints if c.rod == rod.name]
             frames = stress_free_frames(rod, {c.node for c in held})
             message = unheld_message(rod.name, i, held, frames, rod.geometry.arc_length)

@@ -114,6 +114,21 @@ def test_build_model_checks_the_start_configuration():
         build_model(two_pins)
 
 
+def test_supports_of_a_rod_given_a_start_shape_are_checked_where_it_starts():
+    """Hinges about local x at both ends of a straight rod leave the rotation about the
+    rod's line free; started on a sagging arc (``initial.points``), the line through the
+    ends is no longer along the end tangents and the same hinges hold every motion."""
+    d = beam([hinge(0, "x"), hinge(-1, "x")])
+    with pytest.raises(ValueError, match=r"^constraints: rod 'b' \(rods\[0\]\) is free"):
+        sj.Scene.from_dict(d)
+    angle = np.linspace(-0.4, 0.4, 5)
+    radius = 0.5 / np.sin(0.4)
+    points = np.stack([0.5 + radius * np.sin(angle), 0 * angle,
+                       radius * (np.cos(angle) - np.cos(0.4))], axis=1)
+    d["rods"][0]["initial"] = {"points": points.tolist()}
+    build_model(sj.Scene.from_dict(d))          # accepted at load time and at the start
+
+
 def test_hinged_pendulum_swings_about_its_axis():
     """A stiff rod hanging from a hinge (local y = world y) set swinging with a small
     angular velocity w0: a compound pendulum, theta(t) = (w0 / W) sin(W t) with
