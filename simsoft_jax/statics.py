@@ -391,12 +391,19 @@ def _implicit_jvp(tangent, primals, tangents):
     return (R, p), (dR, dp)
 
 
-@jit
-def _solve_static(model: Model, settings: StaticSettings) -> Equilibrium:
+def equilibrium(model: Model, settings: StaticSettings, continuation=None) -> Equilibrium:
+    """The continuation (default :func:`_continuation`; the batched sweeps pass their
+    flattened one) under the full loads, with the implicit derivative attached."""
     model = full_loads(model)
-    eq = _continuation(jax.lax.stop_gradient(model), jax.lax.stop_gradient(settings))
+    eq = (continuation or _continuation)(jax.lax.stop_gradient(model),
+                                         jax.lax.stop_gradient(settings))
     R, p = _implicit(settings.tangent, model, eq.converged, eq.R, eq.p)
     return eq._replace(R=R, p=p)
+
+
+@jit
+def _solve_static(model: Model, settings: StaticSettings) -> Equilibrium:
+    return equilibrium(model, settings)
 
 
 def solve_static(model: Model, settings: StaticSettings = StaticSettings(),
