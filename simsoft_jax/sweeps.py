@@ -35,9 +35,12 @@ from ._xla import jit
 from .batched import solve_static_lane
 from .dynamics import DynamicSettings, Trajectory, simulate
 from .model import Model
-from .sharding import (batch_mesh, gather_processes, process_share, sharded_map,  # noqa: F401
+from .sharding import (batch_mesh, gather_processes, process_share, sharded_map,
                        use_host_devices)
 from .statics import Equilibrium, StaticSettings, as_traced, solve_static
+
+__all__ = ["DYNAMIC_CHUNK", "STATIC_CHUNK", "WARM_ATTEMPTS", "batch_mesh", "dynamic_sweep",
+           "gather_processes", "grid", "process_share", "static_sweep", "use_host_devices"]
 
 
 def grid(**axes) -> dict:
