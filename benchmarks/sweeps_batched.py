@@ -9,7 +9,8 @@ random factor in [0.7, 1.3], 1000 scenes (64 with --quick). Rows: the sequential
 jitted single solve called per scene from Python, on a subset of 100 / 16 scenes, as
 scenes/s), ``sweeps.static_sweep`` / ``dynamic_sweep`` on one device and on every host
 device (``sweeps.use_host_devices()``: one per core, set before JAX starts), and for
-comparison the plain ``jax.vmap`` of the single solver. Also the single synthetic
+comparison the plain ``jax.vmap`` of the single solver and a static chunk of
+``FLAT_FROM`` (the flat continuation). Also the single synthetic
 helical scene after compile. Every row is timed after its compile (one warm-up call);
 CPU time (all threads) is given beside wall time because the machine is shared.
 """
@@ -69,11 +70,13 @@ def static_rows(cases, rng):
     wall, cpu, res = clock(lambda: [one(q) for q in sub])
     rows = [row("static", "sequential loop", seq, wall, cpu,
                 sum(bool(r.converged) for r in res), 1)]
-    for devices in (1, len(jax.local_devices())):
-        wall, cpu, eq = clock(lambda: sweeps.static_sweep(model, vary, points,
-                                                          settings, devices=devices))
-        rows.append(row("static", f"static_sweep chunk {sweeps.STATIC_CHUNK}", cases, wall,
-                        cpu, np.sum(eq.converged), devices))
+    for devices, chunk in ((1, sweeps.STATIC_CHUNK), (len(jax.local_devices()), None),
+                           (1, sweeps.FLAT_FROM)):
+        wall, cpu, eq = clock(lambda: sweeps.static_sweep(model, vary, points, settings,
+                                                          chunk=chunk, devices=devices))
+        how = f"static_sweep chunk {chunk or sweeps.STATIC_CHUNK}"
+        rows.append(row("static", how + (" (flat)" if chunk == sweeps.FLAT_FROM else ""),
+                        cases, wall, cpu, np.sum(eq.converged), devices))
     plain = jit(jax.vmap(lambda q: sj.solve_static(vary(model, q), settings)))
     arrays = {k: jnp.asarray(v) for k, v in points.items()}
     wall, cpu, ref = clock(plain, arrays)

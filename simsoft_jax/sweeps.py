@@ -16,10 +16,11 @@ function, not a new lambda per call) to reuse it::
     points = sweeps.grid(theta=np.linspace(0, 90, 40), load=np.linspace(2, 18, 25))
     eq = sweeps.static_sweep(model, vary, points)      # eq.p: (1000, N, 3)
 
-Every point runs the same Newton iterations as a single solve. Static points use the
-flat continuation of :mod:`simsoft_jax.batched` (one loop of Newton passes, so a vmapped
-chunk runs as long as its longest solve, not the sum of per-level maxima); dynamic
-points run one after the other on each device by default (``DYNAMIC_CHUNK``). What was
+Every point runs the same Newton iterations as a single solve. Static points are vmapped
+in small chunks (``STATIC_CHUNK``); large chunks use the flat continuation of
+:mod:`simsoft_jax.batched` (one loop of Newton passes, so a vmapped chunk runs as long
+as its longest solve, not the sum of per-level maxima). Dynamic points run one after the
+other on each device by default (``DYNAMIC_CHUNK``). What was
 tried and measured: benchmarks/README.md, "Batched sweeps". Several processes
 (``jax.distributed``): :func:`process_share`, :func:`gather_processes`, docs/sweeps.md.
 """
@@ -37,9 +38,9 @@ from .dynamics import DynamicSettings, Trajectory, simulate
 from .model import Model
 from .sharding import (batch_mesh, gather_processes, process_share, sharded_map,
                        use_host_devices)
-from .statics import Equilibrium, StaticSettings, as_traced, solve_static
+from .statics import Equilibrium, StaticSettings, as_traced, equilibrium, solve_static
 
-__all__ = ["DYNAMIC_CHUNK", "STATIC_CHUNK", "WARM_ATTEMPTS", "batch_mesh", "dynamic_sweep",
+__all__ = ["DYNAMIC_CHUNK", "FLAT_FROM", "STATIC_CHUNK", "WARM_ATTEMPTS", "batch_mesh", "dynamic_sweep",
            "gather_processes", "grid", "process_share", "static_sweep", "use_host_devices"]
 
 
@@ -90,7 +91,8 @@ def _sharded(fn, points: dict, chunk: int, mesh):
 
 @jit(static_argnames=("vary", "chunk", "mesh"))
 def _static(model, points, vary, settings, chunk, mesh):
-    return _sharded(lambda q: solve_static_lane(vary(model, q), settings), points, chunk, mesh)
+    solve = solve_static_lane if chunk >= FLAT_FROM else equilibrium
+    return _sharded(lambda q: solve(vary(model, q), settings), points, chunk, mesh)
 
 
 @jit(static_argnames=("vary",))
@@ -108,12 +110,17 @@ def _static_warm(model, points, vary, settings):
 # solve from the reference shape with the full continuation is cheaper than halving on.
 WARM_ATTEMPTS = 3
 
-# Points solved together (jax.vmap) on one device, chosen from benchmarks/sweeps_batched.py
-# (benchmarks/README.md): static solves gain from batching their flat Newton loop; dynamic
-# rollouts of different scenes lose (their modified-Newton matrix rebuilds and Newton
-# iteration counts differ per step, and a vmapped batch pays the union), so they run one
-# after the other on each device.
-STATIC_CHUNK = 32
+# Points solved together (jax.vmap) on one device, chosen from measurements
+# (benchmarks/README.md, "Batched sweeps"): static solves gain from small vmapped chunks
+# (CPU time per scene, random Princeton cases: chunk 8 0.6x a single solve, 32: 0.68x,
+# 96: 0.76x); from FLAT_FROM points per chunk on (large batches, e.g. on a GPU) the flat
+# continuation of simsoft_jax.batched is used, whose cost does not grow with the chunk
+# (0.72x at 8, 32 and 96). Dynamic rollouts of different scenes lose when vmapped (their
+# modified-Newton matrix rebuilds and iteration counts differ per step and a vmapped batch
+# pays the union: 2.4x a single rollout per scene at chunk 8), so they run one after the
+# other on each device.
+STATIC_CHUNK = 8
+FLAT_FROM = 64
 DYNAMIC_CHUNK = 1
 
 
@@ -137,8 +144,9 @@ def static_sweep(model: Model, vary: Callable, points: dict,
 
     The points are split over ``devices`` (default: every local device, see
     :func:`simsoft_jax.sharding.batch_mesh` and :func:`use_host_devices` for CPU cores)
-    and solved on each device ``chunk`` at a time (default ``STATIC_CHUNK``) with the
-    flat continuation of :mod:`simsoft_jax.batched`, vmapped.
+    and solved on each device ``chunk`` at a time (default ``STATIC_CHUNK``), vmapped;
+    chunks of ``FLAT_FROM`` points or more use the flat continuation of
+    :mod:`simsoft_jax.batched` (same results, a cost that does not grow with the chunk).
 
     ``warm_start=True`` solves the points one after the other (``lax.scan``), each from
     the equilibrium of the previous converged point with its full load at once
