@@ -6,8 +6,8 @@ lanes are masked, not stopped), and a ``lax.cond`` with a batched predicate beco
 select that evaluates both branches. The static solver nests its Newton loop inside the
 load continuation loop, so a vmapped solve pays, for every continuation pass, the Newton
 iterations of the slowest lane at that pass: the sum over passes of maxima. Measured on
-100 random Princeton cases (16 elements, gravity; benchmarks/README.md): 26.7 ms per
-lane vmapped against 13.8 ms for one solve alone.
+random Princeton cases (16 elements, gravity; benchmarks/README.md): a vmapped batch of
+200 cost 10-16 ms of CPU per lane against 12.8 ms for one solve alone.
 
 :func:`flat_continuation` is the same algorithm (the same Newton passes, load levels,
 secant predictions and status codes as :func:`~simsoft_jax.statics.solve_static`) written
@@ -16,7 +16,11 @@ Newton solve ends applies the continuation update and starts its next level in t
 pass. Vmapped, the loop runs for the largest number of Newton passes of any lane (the
 maximum of sums), and every pass is one batched residual, tangent and factorization.
 Lanes that are finished keep their carry (``vmap`` of ``while_loop`` selects it), so a
-lane reports exactly the status, iterations and result it would alone.
+lane reports exactly the status, iterations and result it would alone. Measured
+(benchmarks/README.md, "Batched sweeps"), its cost per lane does not grow with the batch
+but its passes carry the secant predictor and Newton restart of every lane, so in small
+chunks the nested solver is cheaper: ``sweeps`` uses the flat loop from
+``sweeps.FLAT_FROM`` points per chunk on.
 
 :func:`any_lane` is ``pred`` for one lane and "any lane's ``pred``" for a vmapped batch: a
 ``lax.cond`` on it stays a branch under ``vmap`` (used by the dynamic Newton solver to
@@ -48,7 +52,8 @@ class _FlatState(NamedTuple):
     done: jax.Array
 
 
-def _where(pred, new, old):
+def select(pred, new, old):
+    """``new`` where the boolean scalar ``pred`` holds, else ``old`` (pytrees alike)."""
     return jax.tree_util.tree_map(lambda a, b: jnp.where(pred, a, b), new, old)
 
 
@@ -61,9 +66,9 @@ def flat_continuation(model: Model, settings: StaticSettings) -> Equilibrium:
         lam_try, Rs, ps = trial_level(f.cont)
         lam = jnp.where(f.starting, lam_try, f.lam_try)
         newton = newton_pass(model, settings, lam, ref,
-                             _where(f.starting, newton_start(Rs, ps), f.newton))
+                             select(f.starting, newton_start(Rs, ps), f.newton))
         ended = newton.status != _RUNNING
-        cont = _where(ended, after_newton(settings, f.cont, lam, *newton_outcome(newton)),
+        cont = select(ended, after_newton(settings, f.cont, lam, *newton_outcome(newton)),
                       f.cont)
         return _FlatState(cont, newton, lam, ended, ~continuing(settings, cont))
 

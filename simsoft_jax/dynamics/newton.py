@@ -14,7 +14,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from ..batched import any_lane
+from ..batched import any_lane, select
 from ..linalg import Factors, factorize, implicit_solve, solve_factored
 from ..drives import held_increments, slide_maps
 from ..statics import step_norm, weighted_norm
@@ -28,10 +28,6 @@ from .scheme import alpha_parameters
 # next iteration (see newton_step for which corrections are kept).
 _CONTRACTION_LIMIT = 0.1
 _RUNNING = -1
-
-
-def _where(pred, new, old):
-    return jax.tree_util.tree_map(lambda a, b: jnp.where(pred, a, b), new, old)
 
 
 class _NewtonCarry(NamedTuple):
@@ -88,7 +84,7 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
         # a branch also under vmap (any_lane): lanes that keep their matrix select it back
         factors = jax.lax.cond(
             any_lane(c.fresh),
-            lambda w, f: _where(c.fresh, factorize(fns.residual_and_matrix(w)[1]), f),
+            lambda w, f: select(c.fresh, factorize(fns.residual_and_matrix(w)[1]), f),
             lambda _, f: f, c.w, c.factors)
         dw = -solve_factored(factors, r)
         if sliding:  # back from slide unknowns to increments (spec: slides_along)
