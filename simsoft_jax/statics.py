@@ -181,6 +181,64 @@ class _NewtonState(NamedTuple):
 _RUNNING = -1
 
 
+def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: _NewtonState) -> _NewtonState:
+    """One pass of :func:`_newton` at load level ``lam`` (load scale ``ref``): residual,
+    tangent and Newton step at the trial state, then accept or backtrack (see there)."""
+    tol = settings.tolerance * ref
+    r, blocks = residual_and_tangent(model, c.R, c.p, lam, settings.tangent)
+    res = weighted_norm(model, r)
+    dx = -block_solve(blocks, r)
+    rot = jnp.max(jnp.linalg.norm(dx[:, 3:], axis=1))
+    dx = dx * jnp.minimum(1.0, settings.max_rotation_step / jnp.maximum(rot, 1e-300))
+    size = _step_size(model, dx)
+    finite = jnp.isfinite(res) & jnp.isfinite(size)
+    exhausted = c.backtracks >= settings.line_search_steps
+    accept = finite & ((size < settings.max_step_growth * c.size_base) | exhausted)
+    # converged: residual below tolerance, or stagnating at the round-off floor (a stiff
+    # axial term makes |r| ~ eps EA) well below the load scale
+    converged = accept & ((res <= tol) | ((res <= settings.stagnation_level * ref)
+                                          & (res >= 0.5 * c.res_base)))
+    # the next Newton step is below step_tolerance: the state is that accurate, even
+    # where round-off keeps the residual above tol (stiff axial terms, spec (S64))
+    stalled = accept & (step_norm(model, dx) <= settings.step_tolerance)
+    base_R = jnp.where(accept, c.R, c.base_R)
+    base_p = jnp.where(accept, c.p, c.base_p)
+    dx = jnp.where(accept, dx, c.dx)
+    step = jnp.where(accept, 1.0, 0.5 * c.step)
+    trial_R, trial_p = _update(base_R, base_p, step * dx)
+    iterations = c.iterations + accept
+    # a non-finite trial from a base with no finite step (the first evaluation, or
+    # after line_search_steps halvings) cannot be backtracked: the solve fails here
+    nonfinite = ~finite & (exhausted | ~jnp.isfinite(c.size_base))
+    status = jnp.where(converged | stalled, Status.CONVERGED, _RUNNING)
+    status = jnp.where(nonfinite, Status.NONFINITE, status)
+    status = jnp.where((status == _RUNNING) & (iterations > settings.max_iterations),
+                       Status.MAX_ITERATIONS, status)
+    status = jnp.where((status == _RUNNING) & ~jnp.all(jnp.isfinite(trial_p)),
+                       Status.NONFINITE, status)
+    done = status != _RUNNING
+    return _NewtonState(
+        R=jnp.where(done, c.R, trial_R), p=jnp.where(done, c.p, trial_p),
+        base_R=base_R, base_p=base_p, dx=dx, step=step,
+        size_base=jnp.where(accept, size, c.size_base), res=res,
+        res_base=jnp.where(accept, res, c.res_base),
+        backtracks=jnp.where(accept, 0, c.backtracks + 1),
+        iterations=iterations, status=status)
+
+
+def newton_start(R, p) -> _NewtonState:
+    """The Newton carry before the first pass, from the predicted frames (R, p)."""
+    inf, zero = jnp.array(jnp.inf), jnp.array(0)
+    return _NewtonState(R=R, p=p, base_R=R, base_p=p, dx=jnp.zeros(p.shape[:1] + (6,)),
+                        step=jnp.array(1.0), size_base=inf, res=inf, res_base=inf,
+                        backtracks=zero, iterations=zero, status=jnp.array(_RUNNING))
+
+
+def newton_outcome(c: _NewtonState):
+    """(R, p, Newton steps, residual norm, status code) of a finished Newton carry."""
+    return c.R, c.p, jnp.maximum(c.iterations - 1, 0), c.res, c.status
+
+
 def _newton(model: Model, settings: StaticSettings, R, p, lam, ref):
     """Newton iterations at load level ``lam`` from (R, p) (spec S71) with damping.
 
@@ -192,57 +250,13 @@ def _newton(model: Model, settings: StaticSettings, R, p, lam, ref):
     does; a strict theta < 1 test rejects good steps of stiff rods) or is not finite; a
     rejected trial halves the step from the base. Every loop pass either accepts (counted
     against ``max_iterations``) or backtracks (at most ``line_search_steps`` in a row), so
-    the loop always ends. Returns (R, p, Newton steps, residual norm, status code).
+    the loop always ends (:func:`newton_pass`). Returns (R, p, Newton steps, residual
+    norm, status code).
     """
-    tol = settings.tolerance * ref
-
-    def body(c: _NewtonState) -> _NewtonState:
-        r, blocks = residual_and_tangent(model, c.R, c.p, lam, settings.tangent)
-        res = weighted_norm(model, r)
-        dx = -block_solve(blocks, r)
-        rot = jnp.max(jnp.linalg.norm(dx[:, 3:], axis=1))
-        dx = dx * jnp.minimum(1.0, settings.max_rotation_step / jnp.maximum(rot, 1e-300))
-        size = _step_size(model, dx)
-        finite = jnp.isfinite(res) & jnp.isfinite(size)
-        exhausted = c.backtracks >= settings.line_search_steps
-        accept = finite & ((size < settings.max_step_growth * c.size_base) | exhausted)
-        # converged: residual below tolerance, or stagnating at the round-off floor (a stiff
-        # axial term makes |r| ~ eps EA) well below the load scale
-        converged = accept & ((res <= tol) | ((res <= settings.stagnation_level * ref)
-                                              & (res >= 0.5 * c.res_base)))
-        # the next Newton step is below step_tolerance: the state is that accurate, even
-        # where round-off keeps the residual above tol (stiff axial terms, spec (S64))
-        stalled = accept & (step_norm(model, dx) <= settings.step_tolerance)
-        base_R = jnp.where(accept, c.R, c.base_R)
-        base_p = jnp.where(accept, c.p, c.base_p)
-        dx = jnp.where(accept, dx, c.dx)
-        step = jnp.where(accept, 1.0, 0.5 * c.step)
-        trial_R, trial_p = _update(base_R, base_p, step * dx)
-        iterations = c.iterations + accept
-        # a non-finite trial from a base with no finite step (the first evaluation, or
-        # after line_search_steps halvings) cannot be backtracked: the solve fails here
-        nonfinite = ~finite & (exhausted | ~jnp.isfinite(c.size_base))
-        status = jnp.where(converged | stalled, Status.CONVERGED, _RUNNING)
-        status = jnp.where(nonfinite, Status.NONFINITE, status)
-        status = jnp.where((status == _RUNNING) & (iterations > settings.max_iterations),
-                           Status.MAX_ITERATIONS, status)
-        status = jnp.where((status == _RUNNING) & ~jnp.all(jnp.isfinite(trial_p)),
-                           Status.NONFINITE, status)
-        done = status != _RUNNING
-        return _NewtonState(
-            R=jnp.where(done, c.R, trial_R), p=jnp.where(done, c.p, trial_p),
-            base_R=base_R, base_p=base_p, dx=dx, step=step,
-            size_base=jnp.where(accept, size, c.size_base), res=res,
-            res_base=jnp.where(accept, res, c.res_base),
-            backtracks=jnp.where(accept, 0, c.backtracks + 1),
-            iterations=iterations, status=status)
-
-    inf, zero = jnp.array(jnp.inf), jnp.array(0)
-    init = _NewtonState(R=R, p=p, base_R=R, base_p=p, dx=jnp.zeros(p.shape[:1] + (6,)),
-                        step=jnp.array(1.0), size_base=inf, res=inf, res_base=inf,
-                        backtracks=zero, iterations=zero, status=jnp.array(_RUNNING))
-    c = jax.lax.while_loop(lambda c: c.status == _RUNNING, body, init)
-    return c.R, c.p, jnp.maximum(c.iterations - 1, 0), c.res, c.status
+    c = jax.lax.while_loop(lambda c: c.status == _RUNNING,
+                           lambda c: newton_pass(model, settings, lam, ref, c),
+                           newton_start(R, p))
+    return newton_outcome(c)
 
 
 def _secant(R, p, R_prev, p_prev, ratio):
@@ -273,46 +287,73 @@ class _ContinuationState(NamedTuple):
     cause: jax.Array
 
 
-def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
-    """Adaptive load continuation lam: 0 -> 1 with Newton at each level (spec section 5)."""
-    dlam_max = 1.0 / settings.load_steps
-    dlam_min = dlam_max * settings.min_step_fraction
-    ref = load_scale(model)
+def trial_level(c: _ContinuationState):
+    """The next load level of the continuation and the secant prediction of its frames:
+    ``(lam_try, R, p)``."""
+    lam_try = c.lam + c.dlam
+    lam_try = jnp.where(lam_try > 1.0 - 1e-9, 1.0, lam_try)  # no sliver step from round-off
+    ratio = (lam_try - c.lam) / jnp.maximum(c.lam - c.lam_prev, 1e-300)
+    Rs, ps = _secant(c.R, c.p, c.R_prev, c.p_prev, jnp.where(c.accepted >= 1, ratio, 0.0))
+    return lam_try, Rs, ps
 
-    def body(c: _ContinuationState) -> _ContinuationState:
-        lam_try = c.lam + c.dlam
-        lam_try = jnp.where(lam_try > 1.0 - 1e-9, 1.0, lam_try)  # no sliver step from round-off
-        ratio = (lam_try - c.lam) / jnp.maximum(c.lam - c.lam_prev, 1e-300)
-        Rs, ps = _secant(c.R, c.p, c.R_prev, c.p_prev, jnp.where(c.accepted >= 1, ratio, 0.0))
-        R, p, its, res, status = _newton(model, settings, Rs, ps, lam_try, ref)
-        ok = status == Status.CONVERGED
-        grow = jnp.where(its < 5, 1.5, 1.0)
-        keep = lambda new, old: jnp.where(ok, new, old)  # noqa: E731
-        return _ContinuationState(
-            R=keep(R, c.R), p=keep(p, c.p), R_prev=keep(c.R, c.R_prev),
-            p_prev=keep(c.p, c.p_prev), lam_prev=keep(c.lam, c.lam_prev),
-            lam=keep(lam_try, c.lam),
-            dlam=jnp.where(ok, jnp.minimum(c.dlam * grow, dlam_max), 0.5 * c.dlam),
-            accepted=c.accepted + ok, failures=c.failures + (~ok),
-            iterations=c.iterations + its, attempts=c.attempts + 1,
-            residual=keep(res, c.residual), cause=keep(c.cause, status))
 
-    def running(c: _ContinuationState):
-        return (c.lam < 1.0) & (c.dlam >= dlam_min) & (c.attempts < settings.max_attempts)
+def after_newton(settings: StaticSettings, c: _ContinuationState, lam_try, R, p, its, res,
+                 status) -> _ContinuationState:
+    """The continuation carry after the Newton solve at ``lam_try`` ended with ``status``:
+    a converged level is accepted and the increment grows by 1.5 after an easy solve (fewer
+    than 5 steps), up to ``1/load_steps``; a failed one halves the increment."""
+    ok = status == Status.CONVERGED
+    grow = jnp.where(its < 5, 1.5, 1.0)
+    keep = lambda new, old: jnp.where(ok, new, old)  # noqa: E731
+    return _ContinuationState(
+        R=keep(R, c.R), p=keep(p, c.p), R_prev=keep(c.R, c.R_prev),
+        p_prev=keep(c.p, c.p_prev), lam_prev=keep(c.lam, c.lam_prev),
+        lam=keep(lam_try, c.lam),
+        dlam=jnp.where(ok, jnp.minimum(c.dlam * grow, 1.0 / settings.load_steps), 0.5 * c.dlam),
+        accepted=c.accepted + ok, failures=c.failures + (~ok),
+        iterations=c.iterations + its, attempts=c.attempts + 1,
+        residual=keep(res, c.residual), cause=keep(c.cause, status))
 
+
+def continuing(settings: StaticSettings, c: _ContinuationState):
+    """Whether the continuation goes on: loads not reached, increment above its minimum
+    (``min_step_fraction / load_steps``), attempts left."""
+    dlam_min = (1.0 / settings.load_steps) * settings.min_step_fraction
+    return (c.lam < 1.0) & (c.dlam >= dlam_min) & (c.attempts < settings.max_attempts)
+
+
+def continuation_start(model: Model, settings: StaticSettings) -> _ContinuationState:
+    """The continuation carry at load level 0 (the start frames of ``model``)."""
     zero = jnp.array(0)
-    init = _ContinuationState(
+    return _ContinuationState(
         R=model.R0, p=model.p0, R_prev=model.R0, p_prev=model.p0, lam=jnp.array(0.0),
-        lam_prev=jnp.array(0.0), dlam=jnp.asarray(dlam_max, jnp.float64), accepted=zero,
-        failures=zero, iterations=zero, attempts=zero, residual=jnp.array(jnp.inf),
-        cause=jnp.array(int(Status.NOT_RUN)))
-    c = jax.lax.while_loop(running, body, init)
+        lam_prev=jnp.array(0.0), dlam=jnp.asarray(1.0 / settings.load_steps, jnp.float64),
+        accepted=zero, failures=zero, iterations=zero, attempts=zero,
+        residual=jnp.array(jnp.inf), cause=jnp.array(int(Status.NOT_RUN)))
+
+
+def continuation_result(settings: StaticSettings, c: _ContinuationState) -> Equilibrium:
+    """The :class:`Equilibrium` of a finished continuation carry."""
     converged = c.lam >= 1.0
     status = jnp.where(converged, Status.CONVERGED,
                        jnp.where(c.attempts >= settings.max_attempts, Status.MAX_ATTEMPTS,
                                  Status.STEP_TOO_SMALL))
     return Equilibrium(c.R, c.p, converged, c.iterations, c.residual, c.lam, c.accepted,
                        c.failures, status, c.cause)
+
+
+def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
+    """Adaptive load continuation lam: 0 -> 1 with Newton at each level (spec section 5)."""
+    ref = load_scale(model)
+
+    def body(c: _ContinuationState) -> _ContinuationState:
+        lam_try, Rs, ps = trial_level(c)
+        R, p, its, res, status = _newton(model, settings, Rs, ps, lam_try, ref)
+        return after_newton(settings, c, lam_try, R, p, its, res, status)
+
+    c = jax.lax.while_loop(lambda c: continuing(settings, c), body,
+                           continuation_start(model, settings))
+    return continuation_result(settings, c)
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0,))
@@ -350,12 +391,19 @@ def _implicit_jvp(tangent, primals, tangents):
     return (R, p), (dR, dp)
 
 
-@jit
-def _solve_static(model: Model, settings: StaticSettings) -> Equilibrium:
+def equilibrium(model: Model, settings: StaticSettings, continuation=None) -> Equilibrium:
+    """The continuation (default :func:`_continuation`; the batched sweeps pass their
+    flattened one) under the full loads, with the implicit derivative attached."""
     model = full_loads(model)
-    eq = _continuation(jax.lax.stop_gradient(model), jax.lax.stop_gradient(settings))
+    eq = (continuation or _continuation)(jax.lax.stop_gradient(model),
+                                         jax.lax.stop_gradient(settings))
     R, p = _implicit(settings.tangent, model, eq.converged, eq.R, eq.p)
     return eq._replace(R=R, p=p)
+
+
+@jit
+def _solve_static(model: Model, settings: StaticSettings) -> Equilibrium:
+    return equilibrium(model, settings)
 
 
 def solve_static(model: Model, settings: StaticSettings = StaticSettings(),

@@ -4,18 +4,25 @@ A sweep keeps the model structure (mesh, constraints, which loads exist) and var
 arrays: loads, load angles, stiffness, gravity, time-law parameters, initial velocities.
 The user states how one point of the sweep changes the model with a function
 ``vary(model, point) -> model`` (``point`` a dict of scalars or arrays, one entry of
-each swept array), and the sweep evaluates all points with ``jax.vmap`` (in chunks of
-``chunk`` points with :func:`jax.lax.map` to bound memory). The compiled program is cached
-per (structure, ``vary``, settings): define ``vary`` once (a module-level function, not a
-new lambda per call) to reuse it::
+each swept array), and the sweep evaluates all points in one compiled program: split
+over the devices of a mesh (every CPU core with :func:`use_host_devices`, or every GPU;
+:mod:`simsoft_jax.sharding`), and on each device ``chunk`` points at a time with
+``jax.vmap`` (``lax.map`` over the chunks). The compiled program is cached per
+(structure, ``vary``, settings, chunk, devices): define ``vary`` once (a module-level
+function, not a new lambda per call) to reuse it::
 
     def vary(model, q):                      # Princeton map: angle and load of the tip weight
         return princeton.case_model(model, q["theta"], q["load"])
     points = sweeps.grid(theta=np.linspace(0, 90, 40), load=np.linspace(2, 18, 25))
     eq = sweeps.static_sweep(model, vary, points)      # eq.p: (1000, N, 3)
 
-Every point runs the same Newton iterations as a single solve (a vmapped while-loop
-runs until the slowest point has converged; converged points are left unchanged).
+Every point runs the same Newton iterations as a single solve. Static points are vmapped
+in small chunks (``STATIC_CHUNK``); large chunks use the flat continuation of
+:mod:`simsoft_jax.batched` (one loop of Newton passes, so a vmapped chunk runs as long
+as its longest solve, not the sum of per-level maxima). Dynamic points run one after the
+other on each device by default (``DYNAMIC_CHUNK``). What was
+tried and measured: benchmarks/README.md, "Batched sweeps". Several processes
+(``jax.distributed``): :func:`process_share`, :func:`gather_processes`, docs/sweeps.md.
 """
 from __future__ import annotations
 
@@ -26,9 +33,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._xla import jit
+from .batched import solve_static_lane
 from .dynamics import DynamicSettings, Trajectory, simulate
 from .model import Model
-from .statics import Equilibrium, StaticSettings, solve_static
+from .sharding import (batch_mesh, gather_processes, process_share, sharded_map,
+                       use_host_devices)
+from .statics import Equilibrium, StaticSettings, as_traced, equilibrium, solve_static
+
+__all__ = ["DYNAMIC_CHUNK", "FLAT_FROM", "STATIC_CHUNK", "WARM_ATTEMPTS", "batch_mesh", "dynamic_sweep",
+           "gather_processes", "grid", "process_share", "static_sweep", "use_host_devices"]
 
 
 def grid(**axes) -> dict:
@@ -61,17 +74,25 @@ def _batch_size(points: dict) -> int:
     return next(iter(sizes.values()))
 
 
-def _map(fn, points: dict, chunk: int | None):
-    size = _batch_size(points)
-    points = {name: jnp.asarray(value, jnp.float64) for name, value in points.items()}
-    if chunk is None or chunk >= size:
-        return jax.vmap(fn)(points)
-    return jax.lax.map(fn, points, batch_size=int(chunk))
+def _arrays(points: dict) -> dict:
+    _batch_size(points)
+    return {name: jnp.asarray(value, jnp.float64) for name, value in points.items()}
 
 
-@jit(static_argnames=("vary", "chunk"))
-def _static(model, points, vary, settings, chunk):
-    return _map(lambda q: solve_static(vary(model, q), settings), points, chunk)
+def _sharded(fn, points: dict, chunk: int, mesh):
+    """``fn`` over every point: split over the devices of ``mesh``, and on each device in
+    chunks of ``chunk`` points (``jax.vmap`` inside a chunk, ``lax.map`` over chunks)."""
+    def per_device(share):
+        if chunk == 1:
+            return jax.lax.map(fn, share)
+        return jax.lax.map(fn, share, batch_size=chunk)
+    return sharded_map(per_device, points, mesh)
+
+
+@jit(static_argnames=("vary", "chunk", "mesh"))
+def _static(model, points, vary, settings, chunk, mesh):
+    solve = solve_static_lane if chunk >= FLAT_FROM else equilibrium
+    return _sharded(lambda q: solve(vary(model, q), settings), points, chunk, mesh)
 
 
 @jit(static_argnames=("vary",))
@@ -89,15 +110,43 @@ def _static_warm(model, points, vary, settings):
 # solve from the reference shape with the full continuation is cheaper than halving on.
 WARM_ATTEMPTS = 3
 
+# Points solved together (jax.vmap) on one device, chosen from measurements
+# (benchmarks/README.md, "Batched sweeps"): static solves gain from small vmapped chunks
+# (CPU time per scene, random Princeton cases: chunk 8 0.6x a single solve, 32: 0.68x,
+# 96: 0.76x); from FLAT_FROM points per chunk on (large batches, e.g. on a GPU) the flat
+# continuation of simsoft_jax.batched is used, whose cost does not grow with the chunk
+# (0.72x at 8, 32 and 96). Dynamic rollouts of different scenes lose when vmapped (their
+# modified-Newton matrix rebuilds and iteration counts differ per step and a vmapped batch
+# pays the union: 2.4x a single rollout per scene at chunk 8), so they run one after the
+# other on each device.
+STATIC_CHUNK = 8
+FLAT_FROM = 64
+DYNAMIC_CHUNK = 1
+
+
+def _chunk(chunk, default: int) -> int:
+    chunk = default if chunk is None else int(chunk)
+    if chunk < 1:
+        raise ValueError(f"chunk: must be >= 1, got {chunk}")
+    return chunk
+
 
 def static_sweep(model: Model, vary: Callable, points: dict,
                  settings: StaticSettings = StaticSettings(), chunk: int | None = None,
-                 warm_start: bool = False) -> Equilibrium:
+                 warm_start: bool = False, devices=None) -> Equilibrium:
     """Static equilibria of ``vary(model, point)`` for every point (one compile).
 
     points: ``{name: (B, ...) array}``; returns an :class:`Equilibrium` whose arrays have
-    a leading batch axis ``B`` (``p`` (B, N, 3), ``converged`` (B,), ...). Differentiable
-    like :func:`solve_static`.
+    a leading batch axis ``B`` (``p`` (B, N, 3), ``converged`` (B,), ``status`` and
+    ``cause`` (B,), ...): each point reports its own status, a failed point leaves the
+    others untouched. The results are those of :func:`solve_static` on each point (same
+    Newton iterations, to round-off), and differentiable like it.
+
+    The points are split over ``devices`` (default: every local device, see
+    :func:`simsoft_jax.sharding.batch_mesh` and :func:`use_host_devices` for CPU cores)
+    and solved on each device ``chunk`` at a time (default ``STATIC_CHUNK``), vmapped;
+    chunks of ``FLAT_FROM`` points or more use the flat continuation of
+    :mod:`simsoft_jax.batched` (same results, a cost that does not grow with the chunk).
 
     ``warm_start=True`` solves the points one after the other (``lax.scan``), each from
     the equilibrium of the previous converged point with its full load at once
@@ -107,36 +156,42 @@ def static_sweep(model: Model, vary: Callable, points: dict,
     points are close (order them so: :func:`grid` varies its last axis fastest). On a
     multistable problem it may follow a different branch than a solve from the
     reference shape. Points whose warm start fails are solved again from the reference
-    shape (vmapped, ``settings`` as given; ``chunk`` applies to them). The warm path
-    inspects ``converged`` on the host: call it outside ``jax.jit``/``jax.grad`` (the
-    vmapped default is the differentiable one).
+    shape (batched, ``settings`` as given). The warm path runs on one device and
+    inspects ``converged`` on the host: call it outside ``jax.jit``/``jax.grad``.
     """
-    _batch_size(points)
+    points = _arrays(points)
+    chunk, mesh = _chunk(chunk, STATIC_CHUNK), batch_mesh(devices)
     if not warm_start:
-        return _static(model, points, vary, settings, chunk)
+        return _static(model, points, vary, as_traced(settings), chunk, mesh)
     eq = _static_warm(model, points, vary,
                       settings.replace(load_steps=1, max_attempts=WARM_ATTEMPTS))
     failed = np.flatnonzero(~np.asarray(eq.converged))
     if failed.size:       # too far from the previous point: solve those from the reference
-        cold = _static(model, {name: np.asarray(value)[failed] for name, value in points.items()},
-                       vary, settings, chunk)
+        cold = _static(model, {name: value[failed] for name, value in points.items()},
+                       vary, settings, chunk, mesh)
         eq = jax.tree.map(lambda warm, again: warm.at[failed].set(again), eq, cold)
     return eq
 
 
-@jit(static_argnames=("vary", "chunk"))
-def _dynamic(model, points, vary, settings, chunk):
-    return _map(lambda q: simulate(vary(model, q), settings), points, chunk)
+@jit(static_argnames=("vary", "chunk", "mesh"))
+def _dynamic(model, points, vary, settings, chunk, mesh):
+    return _sharded(lambda q: simulate(vary(model, q), settings), points, chunk, mesh)
 
 
 def dynamic_sweep(model: Model, vary: Callable, points: dict, settings: DynamicSettings,
-                  chunk: int | None = None) -> Trajectory:
+                  chunk: int | None = None, devices=None) -> Trajectory:
     """Rollouts of ``vary(model, point) -> model`` for every point.
 
     ``vary`` may change any Model array (stiffness, inertia, loads and their time-law
     parameters in ``model.channels``, initial velocities ``v0``, drive tables). Returns a
     :class:`Trajectory` with a leading batch axis ``B``: ``p`` (B, T, N, 3), ``converged``
-    (B,), ``failed_at`` (B,).
+    (B,), ``failed_at`` (B,), ``status``/``cause`` (B,); each point is the rollout
+    :func:`simulate` gives alone (to round-off) and a failed point leaves the others
+    untouched. The points are split over ``devices`` (as in :func:`static_sweep`) and
+    run on each device ``chunk`` at a time (default ``DYNAMIC_CHUNK`` = 1: one after the
+    other; a larger chunk vmaps that many rollouts, which pays when they are nearly
+    identical).
     """
-    _batch_size(points)
-    return _dynamic(model, points, vary, settings, chunk)
+    points = _arrays(points)
+    return _dynamic(model, points, vary, as_traced(settings),
+                    _chunk(chunk, DYNAMIC_CHUNK), batch_mesh(devices))

@@ -14,6 +14,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
+from ..batched import any_lane, select
 from ..linalg import Factors, factorize, implicit_solve, solve_factored
 from ..drives import held_increments, slide_maps
 from ..statics import step_norm, weighted_norm
@@ -80,8 +81,11 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
 
     def body(c: _NewtonCarry) -> _NewtonCarry:
         r = fns.newton_residual(c.w)  # once in the program; the branch builds only the matrix
-        factors = jax.lax.cond(c.fresh, lambda w, _: factorize(fns.residual_and_matrix(w)[1]),
-                               lambda _, f: f, c.w, c.factors)
+        # a branch also under vmap (any_lane): lanes that keep their matrix select it back
+        factors = jax.lax.cond(
+            any_lane(c.fresh),
+            lambda w, f: select(c.fresh, factorize(fns.residual_and_matrix(w)[1]), f),
+            lambda _, f: f, c.w, c.factors)
         dw = -solve_factored(factors, r)
         if sliding:  # back from slide unknowns to increments (spec: slides_along)
             dw = jnp.einsum("nij,nj->ni", slide_maps(model, state.R, c.w)[1], dw)
