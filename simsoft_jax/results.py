@@ -15,6 +15,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from . import compile_cache
 from .dynamics import Trajectory, rollout
 from .dynamics.driver import compile_key
 from .model import Model, build_model
@@ -191,7 +192,7 @@ def _run_dynamic(scene: Scene, model: Model, progress=None) -> Result:
         progress=progress, compiled=_COMPILED, tolerance=solver.tolerance,
         max_iterations=solver.max_iterations, tangent=solver.tangent)
     wall = time.perf_counter() - start - compile_time
-    return Result(scene, model, jax.block_until_ready(trajectory), wall, compile_time)
+    return Result(scene, model, trajectory, wall, compile_time)
 
 
 _negative_eigenvalues = jax.jit(negative_eigenvalues)
@@ -214,6 +215,7 @@ def run(scene, progress=None, stability: bool = True) -> Result:
     negative eigenvalues of the tangent at a converged static equilibrium
     (:attr:`Result.stability`; :mod:`simsoft_jax.stability`).
     """
+    compile_cache.enable()
     if isinstance(scene, (str, Path)):
         scene = load_scene(scene)
     elif isinstance(scene, dict):
@@ -224,7 +226,7 @@ def run(scene, progress=None, stability: bool = True) -> Result:
     settings = settings_from_scene(scene.solver)
     solver, compile_time = compiled_static_solver(model, settings)
     start = time.perf_counter()
-    equilibrium = jax.block_until_ready(solver(model, as_traced(settings)))
+    equilibrium = jax.device_get(solver(model, as_traced(settings)))
     wall = time.perf_counter() - start
     checked = (check_stability(model, equilibrium)
                if stability and bool(equilibrium.converged) else None)
