@@ -29,7 +29,8 @@ def cantilever(force):
             "rods": [{"name": "rod", "elements": 2, "geometry": {"kind": "straight",
                                                                  "length": 1.0},
                       "stiffness": {"EA": 1e5, "GAy": 1e5, "GAz": 1e5, "GJ": 1.0,
-                                    "EIy": 1.0, "EIz": 1.0}}],
+                                    "EIy": 1.0, "EIz": 1.0},
+                      "inertia": {"rhoA": 1.0, "rhoJ": 1.0, "rhoIy": 1.0, "rhoIz": 1.0}}],
             "constraints": [{"kind": "clamp", "rod": "rod", "node": 0}],
             "loads": [{"kind": "force", "rod": "rod", "node": -1, "vector": [0, 0, force]}]}
 
