@@ -1,8 +1,9 @@
 """Run a scene and hold its result in the layout of the scene-file contract.
 
 ``run(scene)`` builds the Model, compiles the solver once per model structure (kept in
-a cache, so running the same structure with other numbers does not recompile) and returns
-a :class:`Result`. ``Result.to_dict()`` is exactly the JSON layout of
+a cache, so running the same structure with other numbers does not recompile; and in
+JAX's persistent compilation cache, :mod:`.compile_cache`) and returns a
+:class:`Result` holding NumPy arrays (copied from the device once). ``Result.to_dict()`` is exactly the JSON layout of
 ``scene-format.md``; ``Result.save(path)`` writes ``.json`` or ``.npz``.
 """
 from __future__ import annotations
@@ -203,10 +204,11 @@ def check_stability(model: Model, equilibrium) -> tuple[dict, float]:
     (:mod:`simsoft_jax.stability`), and the seconds spent compiling the check now (once
     per structure; 0.0 afterwards)."""
     key = ("stability",) + compile_key(model, None)
-    start = time.perf_counter()
+    seconds = 0.0
     if key not in _COMPILED:
+        start = time.perf_counter()
         _COMPILED[key] = _negative_eigenvalues.lower(model, equilibrium).compile()
-    seconds = time.perf_counter() - start
+        seconds = time.perf_counter() - start
     n = int(_COMPILED[key](model, equilibrium))
     return {"negative_eigenvalues": n, "stable": n == 0}, seconds
 
@@ -217,8 +219,11 @@ def run(scene, progress=None, stability: bool = True) -> Result:
     Static scenes: :func:`~simsoft_jax.statics.solve_static` at full load. Dynamic scenes:
     :func:`~simsoft_jax.dynamics.rollout` from t = 0 to exactly t_end (steps of dt,
     shorter closing steps where t_end/dt or save_every does not divide), keeping every
-    ``save_every``-th state and the last, in compiled chunks; ``progress(t, t_end)`` is called
-    after each chunk. Compilation is cached per model structure. ``stability``: count the
+    ``save_every``-th state and the last, in chunks of one compiled program;
+    ``progress(t, t_end)`` is called after each chunk (200 steps). Compilation is cached
+    per model structure: in this process, and on disk in JAX's persistent compilation
+    cache for later processes (:mod:`simsoft_jax.compile_cache`; off with
+    ``SIMSOFT_JAX_CACHE=0``). ``stability``: count the
     negative eigenvalues of the tangent at a converged static equilibrium
     (:attr:`Result.stability`; :mod:`simsoft_jax.stability`).
     """

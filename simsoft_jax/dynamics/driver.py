@@ -154,10 +154,11 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
     compiled = {} if compiled is None else compiled
     key = ("rollout", per_chunk) + compile_key(model, settings)
     carry = _placeholder_carry(model)
-    start = time.perf_counter()
+    compile_seconds = 0.0
     if key not in compiled:
+        start = time.perf_counter()
         compiled[key] = _chunk.lower(model, settings, carry, h[:per_chunk], True).compile()
-    compile_seconds = time.perf_counter() - start
+        compile_seconds = time.perf_counter() - start
     program, outputs, reported, interrupted = compiled[key], [], [0], False
     try:
         for k in range(n_chunks):
