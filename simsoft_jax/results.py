@@ -166,7 +166,11 @@ class Result:
         (or none), never a partial one. An existing file is replaced."""
         path = Path(path)
         if path.suffix == ".json":
-            text = json.dumps(self.to_dict(), indent=1, allow_nan=False)
+            # one line per top-level key: JSON's C encoder (an indent would use its
+            # pure-Python one, 2-3x slower for a long trajectory)
+            text = "{\n" + ",\n".join(
+                f" {json.dumps(key)}: {json.dumps(value, allow_nan=False)}"
+                for key, value in self.to_dict().items()) + "\n}\n"
             return write_atomic(path, lambda fh: fh.write(text))
         if path.suffix != ".npz":
             raise ValueError(f"output: unsupported suffix {path.suffix!r} (use .json or .npz)")
