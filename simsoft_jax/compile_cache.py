@@ -13,17 +13,28 @@ fresh process compiles while building a model). Where the ``filelock`` package i
 installed (JAX needs it for this), the folder is bounded to ``MAX_BYTES`` (least
 recently used entries dropped); otherwise it grows (each program is 0.1-2 MB).
 
+JAX's cache keeps the compiled code; the Python tracing of the solver (1-2 s of a fresh
+process) would still be paid. :func:`compile_stored` keeps the traced program too
+(``jax.export``, in ``<cache>/traced/``; needs the ``flatbuffers`` package), so a later
+process only reads both back.
+
 The cache is trusted code: keep it in a folder only you can write to (JAX's warning on
 ``jax.config.update("jax_compilation_cache_dir", ...)``).
 """
 from __future__ import annotations
 
+import functools
+import hashlib
 import importlib.util
 import os
 import warnings
 from pathlib import Path
 
 import jax
+import numpy as np
+
+from ._xla import compiler_options
+from .output import write_atomic
 
 ENV_DIR = "SIMSOFT_JAX_CACHE_DIR"
 ENV_SWITCH = "SIMSOFT_JAX_CACHE"
@@ -70,3 +81,62 @@ def enable(path=None) -> str | None:
     if importlib.util.find_spec("filelock") is not None:
         jax.config.update("jax_compilation_cache_max_size", MAX_BYTES)
     return str(folder)
+
+
+@functools.cache
+def _source_key() -> str:
+    """Hash of this package's source and the jax version: a traced program stored by
+    another version of either is never used."""
+    root = Path(__file__).resolve().parent
+    digest = hashlib.sha256(jax.__version__.encode())
+    for path in sorted(root.rglob("*.py")):
+        digest.update(str(path.relative_to(root)).encode() + path.read_bytes())
+    return digest.hexdigest()
+
+
+def _read_exported(path: Path):
+    """The stored traced program at ``path``, or None (absent, unreadable, or written by
+    a jax that cannot read it)."""
+    try:
+        return jax.export.deserialize(bytearray(path.read_bytes()))
+    except Exception:  # noqa: BLE001 -- any failure means: trace it again
+        return None
+
+
+def compile_stored(jitted, args: tuple, out_tree, name: str):
+    """``jitted.lower(*args).compile()`` that skips the Python tracing in later processes.
+
+    With the cache on (and the ``flatbuffers`` package that JAX needs to serialize), the
+    traced program (``jax.export``) is kept in ``<cache>/traced/`` under a hash of its
+    argument structure (pytree, shapes, dtypes), this package's source and the jax
+    version; a later process reads it back and compiles it, and the compilation itself
+    comes from the persistent cache. ``out_tree``: the pytree structure of the outputs.
+    Returns a callable with ``jitted``'s signature.
+    """
+    folder = jax.config.jax_compilation_cache_dir
+    if not folder or importlib.util.find_spec("flatbuffers") is None:
+        return jitted.lower(*args).compile()
+    leaves, tree = jax.tree_util.tree_flatten(args)
+    signature = repr((name, tree, [(np.shape(x), str(getattr(x, "dtype", None) or np.result_type(x)),
+                                    bool(getattr(x, "weak_type", False))) for x in leaves]))
+    key = hashlib.sha256((signature + _source_key()).encode()).hexdigest()[:40]
+    path = Path(folder) / "traced" / f"{name}-{key}.jaxexport"
+    exported = _read_exported(path)
+    if exported is None:
+        flat = jax.jit(lambda *xs: jax.tree_util.tree_leaves(
+            jitted(*jax.tree_util.tree_unflatten(tree, xs))))
+        exported = jax.export.export(flat)(*leaves)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            write_atomic(path, lambda fh: fh.write(exported.serialize()), binary=True)
+        except OSError:
+            pass  # a read-only cache: compile without storing
+    def program(*xs):
+        return exported.call(*xs)
+
+    program.__name__ = program.__qualname__ = getattr(jitted, "__name__", name)
+    options = compiler_options()
+    compiled = jax.jit(program, **({"compiler_options": options} if options else {})
+                       ).lower(*leaves).compile()
+    return lambda *a: jax.tree_util.tree_unflatten(
+        out_tree, compiled(*jax.tree_util.tree_leaves(a)))

@@ -17,12 +17,13 @@ import jax
 import numpy as np
 
 from . import compile_cache
+from .compile_cache import compile_stored
 from .dynamics import Trajectory, rollout
 from .dynamics.driver import compile_key
 from .model import Model, build_model
 from .output import finite_or_none, write_atomic
 from .scene import Scene, load_scene
-from .statics import _solve_static, as_traced, settings_from_scene
+from .statics import Equilibrium, _solve_static, as_traced, settings_from_scene
 from .stability import negative_eigenvalues
 from .status import Status
 
@@ -59,7 +60,9 @@ def compiled_static_solver(model: Model, settings):
     if key in _COMPILED:
         return _COMPILED[key], 0.0
     start = time.perf_counter()
-    compiled = _solve_static.lower(model, as_traced(settings)).compile()
+    out_tree = jax.tree_util.tree_structure(Equilibrium(*[0] * len(Equilibrium._fields)))
+    compiled = compile_stored(_solve_static, (model, as_traced(settings)), out_tree,
+                              "static")
     _COMPILED[key] = compiled
     return compiled, time.perf_counter() - start
 
@@ -211,7 +214,8 @@ def check_stability(model: Model, equilibrium) -> tuple[dict, float]:
     seconds = 0.0
     if key not in _COMPILED:
         start = time.perf_counter()
-        _COMPILED[key] = _negative_eigenvalues.lower(model, equilibrium).compile()
+        _COMPILED[key] = compile_stored(_negative_eigenvalues, (model, equilibrium),
+                                        jax.tree_util.tree_structure(0), "stability")
         seconds = time.perf_counter() - start
     n = int(_COMPILED[key](model, equilibrium))
     return {"negative_eigenvalues": n, "stable": n == 0}, seconds

@@ -17,6 +17,7 @@ import json
 
 import jax
 import numpy as np
+import pytest
 
 import simsoft_jax as sj
 from conftest import arc
@@ -104,6 +105,7 @@ def test_cli_reuses_the_program_of_run(tmp_path, capsys):
                                    [0.0, 0.01, 0.02, 0.03, 0.04, 0.05], rtol=0, atol=1e-14)
 
 
+@pytest.mark.slow
 def test_simulate_compiles_once():
     """``sj.simulate``: other stiffness, gravity, dt, rho_inf and tolerance reuse the
     program; the similarity law holds on it too."""
@@ -166,6 +168,7 @@ def scale_moment(model, q):
     return model.replace(nodal_follower=q["m"] * model.nodal_follower)
 
 
+@pytest.mark.slow
 def test_static_sweep_compiles_once():
     """``sweeps.static_sweep`` (its public API): a second sweep of the same size with
     other points compiles nothing."""

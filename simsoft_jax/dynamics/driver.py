@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._xla import jit
+from ..compile_cache import compile_stored
 from ..model import Model
 from ..statics import as_traced
 from ..status import Status
@@ -157,7 +158,9 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
     compile_seconds = 0.0
     if key not in compiled:
         start = time.perf_counter()
-        compiled[key] = _chunk.lower(model, settings, carry, h[:per_chunk], True).compile()
+        out_tree = jax.tree_util.tree_structure((carry, (0,) * 6))
+        compiled[key] = compile_stored(_chunk, (model, settings, carry, h[:per_chunk], True),
+                                       out_tree, "rollout")
         compile_seconds = time.perf_counter() - start
     program, outputs, reported, interrupted = compiled[key], [], [0], False
     try:
