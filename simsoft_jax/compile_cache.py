@@ -117,7 +117,7 @@ def compile_stored(jitted, args: tuple, out_tree, name: str):
     if not folder or importlib.util.find_spec("flatbuffers") is None:
         return jitted.lower(*args).compile()
     leaves, tree = jax.tree_util.tree_flatten(args)
-    signature = repr((name, tree, [(np.shape(x), str(getattr(x, "dtype", None) or np.result_type(x)),
+    signature = repr((name, tree, [(np.shape(x), str(x.dtype if hasattr(x, "dtype") else np.result_type(x)),
                                     bool(getattr(x, "weak_type", False))) for x in leaves]))
     key = hashlib.sha256((signature + _source_key()).encode()).hexdigest()[:40]
     path = Path(folder) / "traced" / f"{name}-{key}.jaxexport"
