@@ -175,6 +175,7 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
         else:
             if progress is not None:
                 _report(outputs[-1][1], reported, progress, t_end)
+        jax.block_until_ready(outputs[-1][1].state.t)  # a Ctrl-C while waiting: below
         done = len(outputs)
     except KeyboardInterrupt:
         done = reported[0] if progress is not None else _completed(outputs)
