@@ -154,15 +154,15 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
         tangent=tangent))
     compiled = {} if compiled is None else compiled
     key = ("rollout", per_chunk) + compile_key(model, settings)
-    carry = _placeholder_carry(model)
     compile_seconds = 0.0
-    if key not in compiled:
+    if key not in compiled:  # the program and a placeholder carry of its shapes
         start = time.perf_counter()
+        carry = _placeholder_carry(model)
         out_tree = jax.tree_util.tree_structure((carry, (0,) * 6))
-        compiled[key] = compile_stored(_chunk, (model, settings, carry, h[:per_chunk], True),
-                                       out_tree, "rollout")
+        compiled[key] = (compile_stored(_chunk, (model, settings, carry, h[:per_chunk], True),
+                                        out_tree, "rollout"), carry)
         compile_seconds = time.perf_counter() - start
-    program, outputs, reported, interrupted = compiled[key], [], [0], False
+    (program, carry), outputs, reported, interrupted = compiled[key], [], [0], False
     try:
         for k in range(n_chunks):
             carry, out = program(model, settings, carry, h[k * per_chunk:(k + 1) * per_chunk],
