@@ -1,10 +1,10 @@
 """Command line: ``simsoft-jax run | validate | princeton | calibrate | bench``.
 
-* ``run SCENE -o OUT.json|.npz [--force] [--no-stability] [--plot F.png] [--animate F.gif]``:
-  solve a scene (exit 1 if not converged, 2 if the scene or the output path is invalid,
-  130 on Ctrl-C, after writing the states computed so far),
+* ``run SCENE -o OUT.json|.npz [--force] [--no-stability] [--no-progress] [--plot F.png]
+  [--animate F.gif]``: solve a scene (exit 1 if not converged, 2 if the scene or the
+  output path is invalid, 130 on Ctrl-C, after writing the states computed so far),
   with a progress line on stderr for dynamic runs and a warning for an unstable static
-  equilibrium;
+  equilibrium; prints the compile and the solve time separately;
 * ``validate SCENE``: check a scene file without solving it;
 * ``princeton``: the 25 load cases of the Princeton beam, a results table and figures
   (seed Figs. 15-18 when ``--measurements`` are given);
@@ -12,6 +12,12 @@
   fit sectional parameters to measured positions;
 * ``bench [--quick] [--only NAMES] [--out DIR]``: the benchmark suite of the source
   checkout (tables, plots, JSON; see benchmarks/README.md).
+
+Compiled solver programs are kept in JAX's persistent compilation cache
+(:mod:`simsoft_jax.compile_cache`; ``~/.cache/simsoft_jax/xla`` or
+``$SIMSOFT_JAX_CACHE_DIR``), so a second run of a scene structure does not compile
+again: ``--cache-dir DIR`` moves it, ``--no-cache`` (or ``SIMSOFT_JAX_CACHE=0``) turns it
+off; both go before or after the command name.
 """
 from __future__ import annotations
 
@@ -31,14 +37,15 @@ def _run(args) -> int:
     try:
         if args.output:  # before solving: a bad output path must not cost a solve
             check_output(args.output, force=args.force)
-        result = run(args.scene, progress=progress, stability=not args.no_stability)
+        result = run(args.scene, progress=None if args.no_progress else progress,
+                     stability=not args.no_stability)
     except (ValueError, NotImplementedError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("\ninterrupted before any state was computed: nothing written", file=sys.stderr)
         return 130
-    if result.time is not None:
+    if result.time is not None and not args.no_progress:
         print(file=sys.stderr)  # end the progress line
     if args.output:
         try:
@@ -195,11 +202,35 @@ def _bench(bench_args: list) -> int:
     return module.main(bench_args)
 
 
+def _cache_flags() -> argparse.ArgumentParser:
+    """``--no-cache`` and ``--cache-dir``, accepted before the command and after ``run``
+    (absent ones leave no attribute, so the two places do not overwrite each other)."""
+    flags = argparse.ArgumentParser(add_help=False)
+    flags.add_argument("--no-cache", action="store_true", default=argparse.SUPPRESS,
+                       help="compile without the persistent compilation cache")
+    flags.add_argument("--cache-dir", default=argparse.SUPPRESS,
+                       help="folder of the persistent compilation cache (default "
+                       "$SIMSOFT_JAX_CACHE_DIR or ~/.cache/simsoft_jax/xla)")
+    return flags
+
+
+def _configure_cache(args) -> None:
+    """Apply ``--no-cache`` / ``--cache-dir`` (:mod:`simsoft_jax.compile_cache`)."""
+    import os
+    from . import compile_cache
+    if getattr(args, "no_cache", False):
+        os.environ[compile_cache.ENV_SWITCH] = "0"   # also for sj.run inside this process
+    else:
+        compile_cache.enable(getattr(args, "cache_dir", None))
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="simsoft-jax", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+                                     formatter_class=argparse.RawDescriptionHelpFormatter,
+                                     parents=[_cache_flags()])
     sub = parser.add_subparsers(dest="command", required=True)
-    p_run = sub.add_parser("run", help="solve a scene file and optionally write the result")
+    p_run = sub.add_parser("run", help="solve a scene file and optionally write the result",
+                           parents=[_cache_flags()])
     p_run.add_argument("scene", help="scene file (.toml or .json)")
     p_run.add_argument("-o", "--output", help="result file (.json or .npz); checked "
                        "before solving, written atomically")
@@ -208,6 +239,8 @@ def main(argv=None) -> int:
     p_run.add_argument("--no-stability", action="store_true",
                        help="static scenes: skip the stability check (the count of negative "
                        "eigenvalues of the tangent at the equilibrium)")
+    p_run.add_argument("--no-progress", action="store_true",
+                       help="dynamic scenes: no progress line")
     p_run.add_argument("--plot", help="figure of the solution (.png, .pdf, .svg)")
     p_run.add_argument("--animate", help="animation of a dynamic run (.gif, or .mp4 with ffmpeg)")
     p_run.set_defaults(func=_run)
@@ -237,6 +270,7 @@ def main(argv=None) -> int:
     if argv[:1] == ["bench"]:          # its options belong to benchmarks/run_all.py
         return _bench(argv[1:])
     args = parser.parse_args(argv)
+    _configure_cache(args)
     return args.func(args)
 
 

@@ -337,18 +337,15 @@ def build_model(scene) -> Model:
         inertia_kind=getattr(scene.solver, "inertia", "consistent"),
         drive_nodes=drive_nodes, slide_drives=sliding,
     )
-    f64 = lambda a: jnp.asarray(a, jnp.float64)  # noqa: E731
-    return Model(
-        structure=structure, R0=f64(R0), p0=f64(p0),
-        d0=f64(d0), length=f64(length), stiffness=f64(np.concatenate(K)),
-        inertia=f64(np.concatenate(M)), viscosity=f64(V), mass_damping=f64(np.concatenate(C)),
-        nodal_dead=f64(nodal_dead), nodal_follower=f64(nodal_follower),
-        distributed_world=f64(dist_world), distributed_local=f64(dist_local),
-        element_point_dead=f64(point_dead), element_point_follower=f64(point_follower),
-        element_point_xi=f64(point_xi),
-        gravity=f64(gravity), char_length=f64(length.mean()),
-        channels=build_channels(timed, structure),
-        v0=f64(_initial_velocities(scene, by_name, R0, p0)),
-        drive_times=f64(times), drive_displacement=f64(disp), drive_rotation=f64(rot),
-        drive_slide=f64(slide),
-    )
+    arrays = dict(
+        R0=R0, p0=p0, d0=d0, length=length, stiffness=np.concatenate(K),
+        inertia=np.concatenate(M), viscosity=V, mass_damping=np.concatenate(C),
+        nodal_dead=nodal_dead,
+        nodal_follower=nodal_follower, distributed_world=dist_world,
+        distributed_local=dist_local, element_point_dead=point_dead,
+        element_point_follower=point_follower, element_point_xi=point_xi, gravity=gravity,
+        char_length=length.mean(), v0=_initial_velocities(scene, by_name, R0, p0),
+        drive_times=times, drive_displacement=disp, drive_rotation=rot, drive_slide=slide)
+    # one batched transfer (a device_put per array costs more than the arrays' numbers)
+    arrays = jax.device_put({k: np.asarray(a, np.float64) for k, a in arrays.items()})
+    return Model(structure=structure, channels=build_channels(timed, structure), **arrays)

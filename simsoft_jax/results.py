@@ -1,8 +1,9 @@
 """Run a scene and hold its result in the layout of the scene-file contract.
 
 ``run(scene)`` builds the Model, compiles the solver once per model structure (kept in
-a cache, so running the same structure with other numbers does not recompile) and returns
-a :class:`Result`. ``Result.to_dict()`` is exactly the JSON layout of
+a cache, so running the same structure with other numbers does not recompile; and in
+JAX's persistent compilation cache, :mod:`.compile_cache`) and returns a
+:class:`Result` holding NumPy arrays (copied from the device once). ``Result.to_dict()`` is exactly the JSON layout of
 ``scene-format.md``; ``Result.save(path)`` writes ``.json`` or ``.npz``.
 """
 from __future__ import annotations
@@ -15,12 +16,14 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from . import compile_cache
+from .compile_cache import compile_stored
 from .dynamics import Trajectory, rollout
 from .dynamics.driver import compile_key
 from .model import Model, build_model
 from .output import finite_or_none, write_atomic
 from .scene import Scene, load_scene
-from .statics import _solve_static, as_traced, settings_from_scene
+from .statics import Equilibrium, _solve_static, as_traced, settings_from_scene
 from .stability import negative_eigenvalues
 from .status import Status
 
@@ -57,7 +60,9 @@ def compiled_static_solver(model: Model, settings):
     if key in _COMPILED:
         return _COMPILED[key], 0.0
     start = time.perf_counter()
-    compiled = _solve_static.lower(model, as_traced(settings)).compile()
+    out_tree = jax.tree_util.tree_structure(Equilibrium(*[0] * len(Equilibrium._fields)))
+    compiled = compile_stored(_solve_static, (model, as_traced(settings)), out_tree,
+                              "static")
     _COMPILED[key] = compiled
     return compiled, time.perf_counter() - start
 
@@ -164,7 +169,11 @@ class Result:
         (or none), never a partial one. An existing file is replaced."""
         path = Path(path)
         if path.suffix == ".json":
-            text = json.dumps(self.to_dict(), indent=1, allow_nan=False)
+            # one line per top-level key: JSON's C encoder (an indent would use its
+            # pure-Python one, 2-3x slower for a long trajectory)
+            text = "{\n" + ",\n".join(
+                f" {json.dumps(key)}: {json.dumps(value, allow_nan=False)}"
+                for key, value in self.to_dict().items()) + "\n}\n"
             return write_atomic(path, lambda fh: fh.write(text))
         if path.suffix != ".npz":
             raise ValueError(f"output: unsupported suffix {path.suffix!r} (use .json or .npz)")
@@ -191,16 +200,25 @@ def _run_dynamic(scene: Scene, model: Model, progress=None) -> Result:
         progress=progress, compiled=_COMPILED, tolerance=solver.tolerance,
         max_iterations=solver.max_iterations, tangent=solver.tangent)
     wall = time.perf_counter() - start - compile_time
-    return Result(scene, model, jax.block_until_ready(trajectory), wall, compile_time)
+    return Result(scene, model, trajectory, wall, compile_time)
 
 
 _negative_eigenvalues = jax.jit(negative_eigenvalues)
 
 
-def check_stability(model: Model, equilibrium) -> dict:
-    """``{"negative_eigenvalues": n, "stable": n == 0}`` at a static equilibrium."""
-    n = int(_negative_eigenvalues(model, equilibrium))
-    return {"negative_eigenvalues": n, "stable": n == 0}
+def check_stability(model: Model, equilibrium) -> tuple[dict, float]:
+    """``{"negative_eigenvalues": n, "stable": n == 0}`` at a static equilibrium
+    (:mod:`simsoft_jax.stability`), and the seconds spent compiling the check now (once
+    per structure; 0.0 afterwards)."""
+    key = ("stability",) + compile_key(model, None)
+    seconds = 0.0
+    if key not in _COMPILED:
+        start = time.perf_counter()
+        _COMPILED[key] = compile_stored(_negative_eigenvalues, (model, equilibrium),
+                                        jax.tree_util.tree_structure(0), "stability")
+        seconds = time.perf_counter() - start
+    n = int(_COMPILED[key](model, equilibrium))
+    return {"negative_eigenvalues": n, "stable": n == 0}, seconds
 
 
 def run(scene, progress=None, stability: bool = True) -> Result:
@@ -209,11 +227,15 @@ def run(scene, progress=None, stability: bool = True) -> Result:
     Static scenes: :func:`~simsoft_jax.statics.solve_static` at full load. Dynamic scenes:
     :func:`~simsoft_jax.dynamics.rollout` from t = 0 to exactly t_end (steps of dt,
     shorter closing steps where t_end/dt or save_every does not divide), keeping every
-    ``save_every``-th state and the last, in compiled chunks; ``progress(t, t_end)`` is called
-    after each chunk. Compilation is cached per model structure. ``stability``: count the
+    ``save_every``-th state and the last, in chunks of one compiled program;
+    ``progress(t, t_end)`` is called after each chunk (200 steps). Compilation is cached
+    per model structure: in this process, and on disk in JAX's persistent compilation
+    cache for later processes (:mod:`simsoft_jax.compile_cache`; off with
+    ``SIMSOFT_JAX_CACHE=0``). ``stability``: count the
     negative eigenvalues of the tangent at a converged static equilibrium
     (:attr:`Result.stability`; :mod:`simsoft_jax.stability`).
     """
+    compile_cache.enable()
     if isinstance(scene, (str, Path)):
         scene = load_scene(scene)
     elif isinstance(scene, dict):
@@ -224,8 +246,9 @@ def run(scene, progress=None, stability: bool = True) -> Result:
     settings = settings_from_scene(scene.solver)
     solver, compile_time = compiled_static_solver(model, settings)
     start = time.perf_counter()
-    equilibrium = jax.block_until_ready(solver(model, as_traced(settings)))
+    equilibrium = jax.device_get(solver(model, as_traced(settings)))
     wall = time.perf_counter() - start
-    checked = (check_stability(model, equilibrium)
-               if stability and bool(equilibrium.converged) else None)
+    checked, check_compile = (check_stability(model, equilibrium)
+                              if stability and equilibrium.converged else (None, 0.0))
+    compile_time += check_compile
     return Result(scene, model, equilibrium, wall, compile_time, checked)

@@ -5,15 +5,24 @@
 * The checkout's own package first on the import path, in this process and in the
   subprocesses the tests start (examples, notebooks, the command line): an installed copy
   elsewhere (another checkout's editable install) is never the one under test.
+* JAX's persistent compilation cache (on by default for ``sj.run`` and the command line,
+  :mod:`simsoft_jax.compile_cache`) in a folder of this test session, never the user's
+  home, for every program of the session (JAX's own variables, so also for tests that
+  never call ``sj.run``); set in the environment, so the subprocesses share it. Programs
+  dropped by ``jax.clear_caches()`` after a module are read back from it by later
+  modules and by the subprocesses. ``SIMSOFT_JAX_CACHE=0`` runs the tests without it.
 * Independent NumPy references used by several test modules (elementary rotations, the
   skew matrix, the exact pure-bending arc).
 
 pytest puts this folder on ``sys.path`` (its default ``prepend`` import mode, no
 ``__init__.py`` here), so test modules import the helpers with ``from conftest import ...``.
 """
+import atexit
 import gc
 import os
+import shutil
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +38,12 @@ SHARED_DIR = REPO_ROOT.parent / "shared"
 sys.path.insert(0, str(REPO_ROOT))
 os.environ["PYTHONPATH"] = os.pathsep.join(
     [str(REPO_ROOT)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p])
+if os.environ.get("SIMSOFT_JAX_CACHE", "1") != "0":
+    COMPILE_CACHE_DIR = tempfile.mkdtemp(prefix="simsoft_jax_xla_")
+    atexit.register(shutil.rmtree, COMPILE_CACHE_DIR, ignore_errors=True)
+    for name in ("SIMSOFT_JAX_CACHE_DIR", "JAX_COMPILATION_CACHE_DIR"):
+        os.environ[name] = COMPILE_CACHE_DIR
+    os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"] = "0"
 
 
 @pytest.fixture(autouse=True, scope="module")

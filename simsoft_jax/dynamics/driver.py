@@ -1,30 +1,40 @@
-"""Host driver of long rollouts: one compiled chunk of steps, called repeatedly from
-Python, with progress reports between chunks, a stop at the first failure and a clean
-stop on KeyboardInterrupt (Ctrl-C) that keeps the chunks computed so far."""
+"""Host driver of long rollouts (``sj.run``, the command line): one compiled program per
+model structure, called in chunks of a fixed number of saved states.
+
+The program computes the start state (spec S67-S68) at its first call and advances
+``CHUNK_STEPS`` steps' worth of save blocks (``save_every`` steps each); the step size of
+every block is an input, so any ``dt`` and ``t_end`` (and the shorter closing block that
+ends a run exactly at ``t_end``) reuse it: it is compiled once per model structure and
+integer settings. Chunks are queued without waiting (JAX dispatches asynchronously), so
+the device never waits for the host; with a ``progress`` function the host reads each
+chunk's end time while the next one runs. Blocks after a failed step are skipped. The
+results are copied to the host once, at the end, and assembled with NumPy. A
+KeyboardInterrupt (Ctrl-C) keeps the chunks completed so far.
+"""
 from __future__ import annotations
 
+import functools
 import time
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
+from .._xla import jit
+from ..compile_cache import compile_stored
 from ..model import Model
 from ..statics import as_traced
 from ..status import Status
-from .rollout import Trajectory, _check_viscosity, _simulate, initial_state
-from .scheme import DynamicSettings
+from .residual import element_inertia
+from .rollout import Trajectory, _check_viscosity, first_carry, initial_state, stepper
+from .scheme import DynamicSettings, State
 
-_initial_state = jax.jit(initial_state)
-
-
-def _chunk_saves(total_saves: int, save_every: int, target_steps: int = 200) -> int:
-    """Largest divisor of ``total_saves`` whose chunk has at most ~target_steps steps."""
-    limit = max(1, target_steps // save_every)
-    return max(k for k in range(1, min(total_saves, limit) + 1) if total_saves % k == 0)
+# Steps per chunk (rounded down to whole save blocks): progress is reported this often.
+CHUNK_STEPS = 200
 
 
-def compile_key(model: Model, settings: DynamicSettings):
-    """What a compiled rollout depends on: the model's structure and array shapes and the
+def compile_key(model: Model, settings):
+    """What a compiled program depends on: the model's structure and array shapes and the
     integer settings (float settings and array values are traced)."""
     leaves, treedef = jax.tree_util.tree_flatten(model)
     return (treedef, tuple(x.shape for x in leaves), jax.tree_util.tree_structure(settings))
@@ -38,105 +48,161 @@ def step_count(t_end: float, dt: float) -> int:
                else int(ratio))
 
 
-def _tail(traj: Trajectory, converged: bool) -> Trajectory:
-    """The part of the closing chunk that is kept: its last saved state when it
-    converged, all its saved states otherwise (the caller cuts them at the failure)."""
-    return traj._replace(time=traj.time[-1:], R=traj.R[-1:], p=traj.p[-1:],
-                         v=traj.v[-1:]) if converged else traj._replace(
-        time=traj.time[1:], R=traj.R[1:], p=traj.p[1:], v=traj.v[1:])
+def block_steps(dt: float, t_end: float, save_every: int) -> tuple[np.ndarray, int]:
+    """Step size (s) of every save block of a run from 0 to ``t_end``, and the
+    ``save_every`` actually used (at most the step count).
+
+    ``floor(t_end/dt) // save_every`` blocks of ``save_every`` steps of ``dt``; what is
+    left before ``t_end`` (less than ``save_every`` steps of ``dt``) is one more block of
+    ``save_every`` equal, shorter steps, whose last state is at ``t_end``."""
+    steps = step_count(t_end, dt)
+    save_every = min(save_every, steps)
+    full = steps // save_every
+    remaining = t_end - full * save_every * dt
+    closing = [remaining / save_every] if remaining > 1e-9 * dt else []
+    return np.array([dt] * full + closing, np.float64), save_every
 
 
-def _concatenate(chunks, state) -> Trajectory:
-    """One trajectory of the saved states of ``chunks``, ending with the last one's flags."""
-    cat = lambda name: jnp.concatenate([getattr(c, name) for c in chunks])  # noqa: E731
-    last = chunks[-1]
-    return Trajectory(cat("time"), cat("R"), cat("p"), cat("v"), last.converged,
-                      last.failed_at, cat("iterations"), cat("substeps"), state, last.status,
-                      last.cause, last.residual)
+@jit
+def _chunk(model: Model, settings: DynamicSettings, carry, h, fresh):
+    """Save blocks of step sizes ``h`` (B,) (0: an unused block, skipped) from ``carry``,
+    or from the start state of ``model`` when ``fresh``. Returns the carry at the end and
+    per block ``(t, R, p, v, iterations (B, save_every), substeps (B, save_every))``."""
+    carry = jax.lax.cond(fresh, lambda c: first_carry(model, initial_state(model)),
+                         lambda c: c, carry)
+    inert = element_inertia(model)
+    idle = jnp.zeros(settings.save_every, jnp.int32)
+
+    def block(c, h_block):
+        def run(c):
+            step = stepper(model, inert, settings.replace(dt=h_block), False)
+            c, (its, subs) = jax.lax.scan(step, c, None, length=settings.save_every)
+            return c, its.astype(jnp.int32), subs.astype(jnp.int32)
+
+        c, its, subs = jax.lax.cond((h_block > 0.0) & ~c.failed, run,
+                                    lambda c: (c, idle, idle), c)
+        st = c.state
+        return c, (st.t, st.R, st.p, st.v, its, subs)
+
+    return jax.lax.scan(block, carry, h)
 
 
-def _interrupted(chunks, state) -> Trajectory:
-    """The completed ``chunks`` of a run stopped by KeyboardInterrupt (status INTERRUPTED,
-    failed_at the last saved time, residual nan)."""
-    traj = _concatenate(chunks, state)
-    return traj._replace(converged=jnp.asarray(False), failed_at=traj.time[-1],
-                         status=jnp.asarray(int(Status.INTERRUPTED)),
-                         cause=jnp.asarray(int(Status.NOT_RUN)),
-                         residual=jnp.asarray(jnp.nan))
+def _placeholder_carry(model: Model):
+    """Host arrays of the shapes and types of the carry (read only when not ``fresh``)."""
+    s = model.structure
+    zeros6 = np.zeros((s.n_nodes, 6))
+    state = State(model.R0, model.p0, zeros6, zeros6, zeros6, np.float64(0.0))
+    shapes = jax.eval_shape(functools.partial(first_carry, model), state)
+    return jax.tree_util.tree_map(lambda x: np.zeros(x.shape, x.dtype), shapes)
+
+
+def _assemble(model: Model, outputs, carry, blocks: int, t_end: float, dt: float,
+              interrupted: bool) -> Trajectory:
+    """One host (NumPy) trajectory from the chunks' outputs: the start state, then the
+    saved state of each of the first ``blocks`` blocks; cut after a failure."""
+    R0, p0, v0, outputs, carry = jax.device_get((model.R0, model.p0, model.v0, outputs,
+                                                 carry))
+    t, R, p, v, its, subs = (np.concatenate(x)[:blocks] for x in zip(*outputs))
+    time_ = np.concatenate([[0.0], t])
+    R, p, v = (np.concatenate([x0[None], x]) for x0, x in ((R0, R), (p0, p), (v0, v)))
+    converged = not bool(carry.failed)
+    status, cause = int(carry.status), int(carry.cause)
+    failed_at, residual = float(carry.failed_at), float(carry.residual)
+    if not converged:  # saved states after the failure repeat the last good one
+        keep = int(np.searchsorted(time_, failed_at, side="left")) + 1
+        time_, R, p, v = time_[:keep], R[:keep], p[:keep], v[:keep]
+    elif interrupted:
+        converged, status, cause = False, int(Status.INTERRUPTED), int(Status.NOT_RUN)
+        failed_at, residual = float(time_[-1]), np.nan
+    elif abs(time_[-1] - t_end) <= 1e-9 * dt:
+        time_[-1] = t_end  # round-off of the sum of the steps
+    return Trajectory(time_, R, p, v, np.bool_(converged), np.float64(failed_at),
+                      its.reshape(-1), subs.reshape(-1), carry.state, np.int64(status),
+                      np.int64(cause), np.float64(residual))
 
 
 def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
             save_every: int = 1, progress=None, compiled=None,
             tolerance: float = 1e-10, max_iterations: int = 25, tangent: str = "closed_form"):
-    """Run from the initial state to exactly ``t_end`` in compiled chunks of one length.
+    """Run from the start state to exactly ``t_end``, saving every ``save_every``-th state.
 
-    Steps of ``dt`` (s) are taken in chunks, the state after every ``save_every``-th step
-    saved. What is left before ``t_end`` when ``t_end/dt`` or ``save_every`` does not
-    divide evenly (less than ``save_every`` steps of ``dt``) is covered by one more call
-    of the same compiled chunk with a smaller step, ``(t_end - t)/(chunk length)``; its
-    last state, at ``t_end``, is saved. So the run always ends at ``t_end`` and saves it,
-    without a second compilation (the closing steps are shorter, never longer, than dt);
-    the last saved time is ``t_end`` itself (the sum of the steps differs from it by
-    round-off only).
-    Any ``t_end``, ``dt``, ``rho_inf`` or ``tolerance`` reuses one compiled chunk for the
-    same structure and chunk length; ``progress(t, t_end)`` is called after every chunk;
-    the run stops at the first failed step and the returned trajectory ends there.
-    A KeyboardInterrupt after the first chunk (in ``progress`` or while a chunk runs)
-    stops the run too: the trajectory holds the completed chunks, with converged False,
-    status ``INTERRUPTED`` and failed_at the last computed time (one during the first
-    chunk is raised: nothing was computed; one after a failed chunk keeps the failure).
-    ``compiled`` may be a dict used as a cache of compiled chunks.
-    Returns ``(Trajectory, compile_seconds)`` with all saved states concatenated.
+    Steps of ``dt`` (s); what is left before ``t_end`` when ``t_end/dt`` or ``save_every``
+    does not divide evenly is one more block of ``save_every`` equal, shorter steps
+    (:func:`block_steps`), whose last state, at ``t_end``, is saved; the last saved time
+    is ``t_end`` itself. Compiled once per model structure and integer settings
+    (``save_every``, ``max_iterations``, ``tangent``): any ``dt``, ``t_end``, ``rho_inf``,
+    ``tolerance`` and model array reuse the program. ``progress(t, t_end)`` is called after
+    every chunk of ``CHUNK_STEPS`` steps; the run stops at the first failed step and the
+    returned trajectory ends there. A KeyboardInterrupt after the first chunk (in
+    ``progress`` or while waiting for a chunk) stops the run too: the trajectory holds the
+    completed chunks, with converged False, status ``INTERRUPTED`` and failed_at the last
+    computed time (one before the first chunk is complete is raised: nothing was computed;
+    one after a failure keeps the failure). ``compiled`` may be a dict used as a cache of
+    compiled programs. Returns ``(Trajectory, compile_seconds)``; the trajectory holds
+    NumPy arrays (``final``: the state after the last computed block).
     """
     _check_viscosity(model)
     if not 0.0 < dt <= t_end:
         raise ValueError(f"solver.dt: must be in (0, t_end = {t_end:g}], got {dt:g}")
-    steps = step_count(t_end, dt)
-    save_every = min(save_every, steps)
-    total_saves = steps // save_every
-    per_chunk = _chunk_saves(total_saves, save_every)
-    chunk_steps = per_chunk * save_every
+    h, save_every = block_steps(dt, t_end, save_every)
+    per_chunk = max(1, CHUNK_STEPS // save_every)
+    n_chunks = -(-len(h) // per_chunk)
+    h = np.concatenate([h, np.zeros(n_chunks * per_chunk - len(h))])
     settings = as_traced(DynamicSettings(
-        dt=float(dt), steps=chunk_steps, rho_inf=float(rho_inf),
+        dt=float(dt), steps=per_chunk * save_every, rho_inf=float(rho_inf),
         save_every=save_every, tolerance=float(tolerance), max_iterations=int(max_iterations),
         tangent=tangent))
     compiled = {} if compiled is None else compiled
-    key = compile_key(model, settings)
-    start = time.perf_counter()
-    state = jax.block_until_ready(_initial_state(model))
-    if key not in compiled:
-        compiled[key] = _simulate.lower(model, settings, state).compile()
-    compile_seconds = time.perf_counter() - start
-    chunks = []
+    key = ("rollout", per_chunk) + compile_key(model, settings)
+    compile_seconds = 0.0
+    if key not in compiled:  # the program and a placeholder carry of its shapes
+        start = time.perf_counter()
+        carry = _placeholder_carry(model)
+        out_tree = jax.tree_util.tree_structure((carry, (0,) * 6))
+        compiled[key] = (compile_stored(_chunk, (model, settings, carry, h[:per_chunk], True),
+                                        out_tree, "rollout"), carry)
+        compile_seconds = time.perf_counter() - start
+    (program, carry), outputs, reported, interrupted = compiled[key], [], [0], False
     try:
-        for _ in range(total_saves // per_chunk):
-            traj = compiled[key](model, settings, state)
-            chunks.append(traj if not chunks else traj._replace(
-                time=traj.time[1:], R=traj.R[1:], p=traj.p[1:], v=traj.v[1:]))
-            state = traj.final
-            if progress is not None:
-                progress(float(state.t), t_end)
-            if not bool(traj.converged):
+        for k in range(n_chunks):
+            carry, out = program(model, settings, carry, h[k * per_chunk:(k + 1) * per_chunk],
+                                 k == 0)
+            outputs.append((out, carry))
+            # report the previous chunk while this one runs; stop after a failure
+            if progress is not None and k > 0 and not _report(outputs[k - 1][1], reported,
+                                                              progress, t_end):
                 break
-        remaining = t_end - float(state.t)  # exact for t in [t_end/2, 2 t_end] (Sterbenz)
-        if bool(chunks[-1].converged) and remaining > 1e-9 * dt:
-            closing = settings.replace(dt=jnp.asarray(remaining / chunk_steps, jnp.float64))
-            traj = compiled[key](model, closing, state)
-            chunks.append(_tail(traj, bool(traj.converged)))
-            state = traj.final
+        else:
             if progress is not None:
-                progress(float(state.t), t_end)
+                _report(outputs[-1][1], reported, progress, t_end)
+        jax.block_until_ready(outputs[-1][1].state.t)  # a Ctrl-C while waiting: below
+        done = len(outputs)
     except KeyboardInterrupt:
-        if not chunks:
+        done = reported[0] if progress is not None else _completed(outputs)
+        if done == 0:
             raise
-        if bool(chunks[-1].converged):
-            return _interrupted(chunks, state), compile_seconds
-    last = chunks[-1]
-    traj = _concatenate(chunks, state)
-    if bool(last.converged) and abs(float(traj.time[-1]) - t_end) <= 1e-9 * dt:
-        traj = traj._replace(time=traj.time.at[-1].set(t_end))  # round-off of the sum of h
-    if not bool(last.converged):  # saved states after the failure repeat the last good one
-        keep = int(jnp.searchsorted(traj.time, last.failed_at, side="left")) + 1
-        traj = traj._replace(time=traj.time[:keep], R=traj.R[:keep], p=traj.p[:keep],
-                             v=traj.v[:keep])
+        interrupted = True
+    kept = outputs[:done]
+    blocks = min(len(kept) * per_chunk, int(np.count_nonzero(h)))
+    traj = _assemble(model, [o for o, _ in kept], kept[-1][1], blocks, t_end, dt,
+                     interrupted and not bool(kept[-1][1].failed))
     return traj, compile_seconds
+
+
+def _report(carry, reported: list, progress, t_end: float) -> bool:
+    """Wait for a chunk, count it in ``reported[0]``, call ``progress`` with its end time;
+    False when a step of it failed."""
+    t = float(carry.state.t)
+    reported[0] += 1
+    progress(t, t_end)
+    return not bool(carry.failed)
+
+
+def _completed(outputs) -> int:
+    """How many leading chunks have finished computing."""
+    n = 0
+    for _, carry in outputs:
+        if not carry.state.t.is_ready():
+            break
+        n += 1
+    return n

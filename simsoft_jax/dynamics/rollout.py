@@ -128,15 +128,18 @@ class _StepCarry(NamedTuple):
     memory: object
 
 
-@jit(static_argnames=("differentiable",))
-def _simulate(model: Model, settings: DynamicSettings, state: State | None,
-              differentiable: bool = False) -> Trajectory:
-    if differentiable and model.structure.slide_drives:
-        raise ValueError("constraints: differentiable=True does not support drives with "
-                         "slides_along yet (the implicit-function derivative would be wrong)")
-    state = initial_state(model) if state is None else state
-    inert = element_inertia(model)
+def first_carry(model: Model, state: State) -> _StepCarry:
+    """What the steps carry at the start of a rollout from ``state``: no failure yet and
+    an empty Newton memory."""
+    return _StepCarry(state, jnp.array(False), jnp.array(jnp.nan),
+                      jnp.array(int(Status.CONVERGED)), jnp.array(int(Status.NOT_RUN)),
+                      jnp.array(jnp.nan), empty_newton_memory(model.structure.n_nodes))
 
+
+def stepper(model: Model, inert, settings: DynamicSettings, differentiable: bool):
+    """One time step of size ``settings.dt`` as a ``lax.scan`` body ``(carry, _) ->
+    (carry, (iterations, substeps))``; after the first failure the state stays frozen and
+    the carry keeps the time, status, cause and residual of that failure."""
     def step(c: _StepCarry, _):
         if differentiable:
             att = attempt(model, inert, settings, c.state, settings.dt, True, c.memory)
@@ -153,6 +156,17 @@ def _simulate(model: Model, settings: DynamicSettings, state: State | None,
         return _StepCarry(new, c.failed | ~ok, keep(c.state.t, c.failed_at),
                           keep(status, c.status), keep(cause, c.cause),
                           keep(residual, c.residual), memory), (its, subs)
+    return step
+
+
+@jit(static_argnames=("differentiable",))
+def _simulate(model: Model, settings: DynamicSettings, state: State | None,
+              differentiable: bool = False) -> Trajectory:
+    if differentiable and model.structure.slide_drives:
+        raise ValueError("constraints: differentiable=True does not support drives with "
+                         "slides_along yet (the implicit-function derivative would be wrong)")
+    state = initial_state(model) if state is None else state
+    step = stepper(model, element_inertia(model), settings, differentiable)
 
     def save_block(c, _):
         c, (its, subs) = jax.lax.scan(jax.checkpoint(step) if differentiable else step, c,
@@ -161,10 +175,8 @@ def _simulate(model: Model, settings: DynamicSettings, state: State | None,
         return c, (st.t, st.R, st.p, st.v, its, subs)
 
     n_saves = settings.steps // settings.save_every
-    carry0 = _StepCarry(state, jnp.array(False), jnp.array(jnp.nan),
-                        jnp.array(int(Status.CONVERGED)), jnp.array(int(Status.NOT_RUN)),
-                        jnp.array(jnp.nan), empty_newton_memory(model.structure.n_nodes))
-    final, (t, R, p, v, its, subs) = jax.lax.scan(save_block, carry0, None, length=n_saves)
+    final, (t, R, p, v, its, subs) = jax.lax.scan(save_block, first_carry(model, state),
+                                                  None, length=n_saves)
     cat = lambda first, rest: jnp.concatenate([first[None], rest])  # noqa: E731
     converged = ~final.failed
     R, p, v = (poison_gradient(converged, x, (model, state)) for x in
