@@ -62,8 +62,19 @@ def apply_scales(model: Model, names: Sequence[str], log_scale) -> Model:
     for j, name in enumerate(names):
         field, columns = PARAMETERS[name]
         factors[field] = factors[field].at[jnp.array(columns)].add(log_scale[j])
-    return model.replace(stiffness=model.stiffness * jnp.exp(factors["stiffness"]),
+    return model.replace(stiffness=scale_stiffness(model.stiffness, jnp.exp(factors["stiffness"])),
                          viscosity=model.viscosity * jnp.exp(factors["viscosity"]))
+
+
+def scale_stiffness(stiffness, factors):
+    """Stiffness with its diagonal entries scaled by ``factors`` (6,) (or (E,6)): a
+    diagonal table (E,6) times the factors; a coupled one (E,6,6) as ``S K S`` with
+    ``S = diag(sqrt(factors))``, which scales each diagonal entry by its factor, each
+    coupling by the geometric mean of its two, and keeps K symmetric positive definite."""
+    if stiffness.ndim == 3:
+        root = jnp.sqrt(factors)
+        return stiffness * root[..., :, None] * root[..., None, :]
+    return stiffness * factors
 
 
 class Fit(NamedTuple):
@@ -165,7 +176,8 @@ def _make_fit(names, model: Model, result) -> Fit:
     """A :class:`Fit` from :func:`minimize`'s result; values relative to ``model``'s first
     element."""
     x, history, r, converged, steps, gnorm, covariance, J = result
-    nominal = {"stiffness": np.asarray(model.stiffness[0]),
+    first = np.asarray(model.stiffness[0])
+    nominal = {"stiffness": np.diag(first) if first.ndim == 2 else first,
                "viscosity": np.asarray(model.viscosity[0])}
     scale = np.exp(x)
     std = scale * np.sqrt(np.maximum(np.diag(covariance), 0.0))

@@ -56,6 +56,9 @@ class Structure:
     has_point_follower: bool = False   # section-frame point loads by s inside an element
     has_gravity: bool = False
     has_viscosity: bool = False   # Kelvin-Voigt terms traced in dynamics
+    coupled_stiffness: bool = False   # Model.stiffness is (E,6,6) (couplings), else (E,6)
+    mass_nodes: tuple = ()        # node of each attached mass ([[masses]])
+    offset_load_nodes: tuple = () # node of each world-frame force at an offset point
     inertia_kind: str = "consistent"   # "consistent" | "lumped" element inertia
     drive_nodes: tuple = ()       # node index of each drive
     slide_drives: tuple = ()      # indices (into the drives) of the sliding ones
@@ -82,7 +85,9 @@ class Model:
     R0 (N,3,3), p0 (N,3): configuration the solvers start from (columns of R0 are the
     local axes in world coordinates). d0 (E,6): stress-free relative twists (spec S34).
     length (E,): reference element lengths ``|d0_U|`` (S35). stiffness, inertia,
-    viscosity (E,6): sectional diagonals ``K``, ``M``, ``Upsilon`` (S28, S29).
+    viscosity (E,6): sectional diagonals ``K``, ``M``, ``Upsilon`` (S28, S29); stiffness
+    is (E,6,6), full symmetric matrices, when the scene has couplings
+    (``structure.coupled_stiffness``).
     nodal_dead (N,6): world-frame force and moment per node (dead loads).
     nodal_follower (N,6): local-frame force and moment per node (follower loads).
     distributed_world / distributed_local (E,3): force per unit length on each element,
@@ -97,6 +102,11 @@ class Model:
     drive tables (world frame, relative to the start pose); drive_slide (D,3): unit world
     direction along which a drive's node slides (zeros for drives holding all six dofs).
     char_length: length scale (m) that makes moments comparable with forces in norms.
+    mass (K,), mass_offset (K,3), mass_inertia (K,3,3): attached masses (kg), their centre
+    (m) and inertia about it (kg m^2), section frame of node ``structure.mass_nodes[k]``
+    (:mod:`simsoft_jax.terms.masses`). offset_force (L,3) world (N), offset_point (L,3)
+    section frame (m): dead forces at offset points of nodes
+    ``structure.offset_load_nodes`` (:mod:`simsoft_jax.terms.offset_loads`).
     """
     structure: Structure
     R0: jax.Array
@@ -121,6 +131,11 @@ class Model:
     drive_displacement: jax.Array
     drive_rotation: jax.Array
     drive_slide: jax.Array
+    mass: jax.Array
+    mass_offset: jax.Array
+    mass_inertia: jax.Array
+    offset_force: jax.Array
+    offset_point: jax.Array
 
     def replace(self, **changes) -> "Model":
         """A copy with some arrays replaced (same structure: no recompilation)."""
@@ -142,6 +157,40 @@ def _rod_constants(rod):
     V = (viscosity_diagonal(rod.section, rod.material) if rod.section is not None
          else np.zeros(6))
     return np.asarray(K, float), np.asarray(M, float), np.asarray(V, float)
+
+
+def _split_offset_loads(loads):
+    """Scene loads -> (loads for the nodal/channel arrays, world-frame forces at an offset
+    point). A follower force at an offset ``c`` becomes the force and the constant moment
+    ``c x F`` (section frame), with the same time law; a dead one stays a force at its
+    point (:mod:`simsoft_jax.terms.offset_loads`; constant profile only, scene.py)."""
+    plain, at_offset = [], []
+    for ld in loads:
+        if ld.offset is None or not np.any(ld.offset):
+            plain.append(ld)
+        elif ld.frame == "world":
+            at_offset.append(ld)
+        else:
+            plain += [dataclasses.replace(ld, offset=None),
+                      dataclasses.replace(ld, kind="moment", offset=None,
+                                          vector=np.cross(ld.offset, ld.vector))]
+    return plain, at_offset
+
+
+def _stiffness_table(pieces):
+    """Per-element stiffness from ``[(K, elements), ...]`` (K (6,) or (6,6)): (E,6) of the
+    diagonals when no piece has couplings (a 6x6 matrix that is diagonal gives exactly
+    its diagonal, so the uncoupled path is used), else (E,6,6) for every element.
+    Returns the table and whether it is coupled (the static flag)."""
+    def diagonal_of(K):
+        return np.diag(K) if K.ndim == 2 and not np.any(K - np.diag(np.diag(K))) else K
+
+    pieces = [(diagonal_of(K), n) for K, n in pieces]
+    coupled = any(K.ndim == 2 for K, _ in pieces)
+    if coupled:
+        full = [K if K.ndim == 2 else np.diag(K) for K, _ in pieces]
+        return np.concatenate([np.tile(K, (n, 1, 1)) for K, (_, n) in zip(full, pieces)]), True
+    return np.concatenate([np.tile(K, (n, 1)) for K, n in pieces]), False
 
 
 def _world_frames(rod):
@@ -256,7 +305,7 @@ def build_model(scene) -> Model:
         d0.append(_reference_twists(R_ref, p_ref))
         for piece in (rod.segments or (rod,)):
             Kr, Mr, Vr = _rod_constants(piece)
-            K.append(np.tile(Kr, (piece.elements, 1)))
+            K.append((Kr, piece.elements))
             M.append(np.tile(Mr, (piece.elements, 1)))
             V.append(np.tile(Vr, (piece.elements, 1)))
         R0.append(R_init)
@@ -287,8 +336,9 @@ def build_model(scene) -> Model:
     dist_local = np.zeros((n_elements, 3))
     point_dead, point_follower = np.zeros((n_elements, 6)), np.zeros((n_elements, 6))
     point_xi = np.full(n_elements, 0.5)
-    constant = [ld for ld in scene.loads if ld.profile.kind == "constant"]
-    timed = [ld for ld in scene.loads if ld.profile.kind != "constant"]
+    loads, offset_loads = _split_offset_loads(scene.loads)
+    constant = [ld for ld in loads if ld.profile.kind == "constant"]
+    timed = [ld for ld in loads if ld.profile.kind != "constant"]
     for load in constant:
         info = by_name[load.rod]
         if load.kind == "distributed_force":
@@ -305,10 +355,11 @@ def build_model(scene) -> Model:
 
     d0 = np.concatenate(d0)
     length = np.linalg.norm(d0[:, :3], axis=1)
+    K, coupled = _stiffness_table(K)
     gravity = np.zeros(3) if scene.gravity is None else np.asarray(scene.gravity, float)
     V = np.concatenate(V)
     times, disp, rot, slide, drive_nodes, sliding = _drive_tables(scene, by_name)
-    loads = scene.loads
+    masses = getattr(scene, "masses", ())
     for load in loads:
         if load.element is not None:
             point_xi[by_name[load.rod].first_element + load.element] = load.xi
@@ -327,13 +378,16 @@ def build_model(scene) -> Model:
                                   for ld in loads),
         has_gravity=scene.gravity is not None,
         has_viscosity=bool(np.any(V != 0.0)),
+        coupled_stiffness=coupled,
         inertia_kind=getattr(scene.solver, "inertia", "consistent"),
         drive_nodes=drive_nodes, slide_drives=sliding,
+        mass_nodes=tuple(by_name[m.rod].first_node + m.node for m in masses),
+        offset_load_nodes=tuple(by_name[ld.rod].first_node + ld.node for ld in offset_loads),
     )
     f64 = lambda a: jnp.asarray(a, jnp.float64)  # noqa: E731
     return Model(
         structure=structure, R0=f64(R0), p0=f64(p0),
-        d0=f64(d0), length=f64(length), stiffness=f64(np.concatenate(K)),
+        d0=f64(d0), length=f64(length), stiffness=f64(K),
         inertia=f64(np.concatenate(M)), viscosity=f64(V),
         nodal_dead=f64(nodal_dead), nodal_follower=f64(nodal_follower),
         distributed_world=f64(dist_world), distributed_local=f64(dist_local),
@@ -344,4 +398,9 @@ def build_model(scene) -> Model:
         v0=f64(_initial_velocities(scene, by_name, R0, p0)),
         drive_times=f64(times), drive_displacement=f64(disp), drive_rotation=f64(rot),
         drive_slide=f64(slide),
+        mass=f64([m.mass for m in masses]),
+        mass_offset=f64(np.reshape([m.offset for m in masses], (-1, 3))),
+        mass_inertia=f64(np.reshape([m.inertia for m in masses], (-1, 3, 3))),
+        offset_force=f64(np.reshape([ld.vector for ld in offset_loads], (-1, 3))),
+        offset_point=f64(np.reshape([ld.offset for ld in offset_loads], (-1, 3))),
     )
