@@ -117,7 +117,8 @@ def _lbfgs_descent():
 
 
 def minimize(residual_fn: Callable, x0, optimizer=None, max_steps: int = 100,
-             gradient_tolerance: float = 1e-6, noise_std: float | None = None):
+             gradient_tolerance: float = 1e-6, noise_std: float | None = None,
+             bounds=None):
     """Minimise ``0.5 |r(x)|^2`` with optax; ``residual_fn(x) -> (r (n,), ok)`` traceable.
 
     One compiled function returns ``r``, the sensitivity ``J = dr/dx`` (forward mode,
@@ -128,8 +129,20 @@ def minimize(residual_fn: Callable, x0, optimizer=None, max_steps: int = 100,
     ``|grad| <= gradient_tolerance |grad_0|``, when the loss stops decreasing, or after
     ``max_steps``; a solve that fails to converge raises RuntimeError. Returns ``(x,
     loss_history, r, converged, steps, gradient_norm, covariance, J)``; converged: the
-    gradient criterion was met (covariance as in the module docstring).
+    gradient criterion was met (covariance as in the module docstring). ``bounds =
+    (lo, hi)`` (P,) each: box on x (log scales); trial points are projected onto it and
+    the stopping test uses the projected gradient (components pushing out of an active
+    bound are dropped).
     """
+    lo, hi = ((np.full(len(x0), -np.inf), np.full(len(x0), np.inf)) if bounds is None
+              else (np.asarray(bounds[0], float), np.asarray(bounds[1], float)))
+
+    def projected(x, grad):
+        out = grad.copy()
+        out[(x <= lo) & (grad > 0)] = 0.0
+        out[(x >= hi) & (grad < 0)] = 0.0
+        return out
+
     search = optimizer is None
     optimizer = _lbfgs_descent() if search else optimizer
     evaluate = jit(lambda x: (*residual_fn(x), jax.jacfwd(lambda y: residual_fn(y)[0])(x)))
@@ -142,18 +155,20 @@ def minimize(residual_fn: Callable, x0, optimizer=None, max_steps: int = 100,
         r, J = np.asarray(r), np.asarray(J)
         return 0.5 * float(r @ r), r, J
 
-    x = np.asarray(x0, float)
+    x = np.clip(np.asarray(x0, float), lo, hi)
     value, r, J = loss_terms(x)
     grad = J.T @ r
     g0 = max(float(np.linalg.norm(grad)), 1e-300)
     state = optimizer.init(jnp.asarray(x))
     history, steps = [value], 0
-    while steps < max_steps and np.linalg.norm(grad) > gradient_tolerance * g0:
+    while (steps < max_steps
+           and np.linalg.norm(projected(x, grad)) > gradient_tolerance * g0):
         updates, state = optimizer.update(jnp.asarray(grad), state, jnp.asarray(x))
         updates = np.asarray(updates)
         alpha, slope = 1.0, float(grad @ updates)
         while True:
-            trial = x + alpha * updates
+            trial = np.clip(x + alpha * updates, lo, hi)
+            slope = float(grad @ (trial - x)) / alpha
             t_value, t_r, t_J = loss_terms(trial)
             if not search or t_value <= value + 1e-4 * alpha * slope or alpha < 1e-6:
                 break
@@ -167,7 +182,7 @@ def minimize(residual_fn: Callable, x0, optimizer=None, max_steps: int = 100,
     dof = max(len(r) - len(x), 1)
     variance = noise_std ** 2 if noise_std is not None else float(r @ r) / dof
     covariance = variance * np.linalg.pinv(J.T @ J)
-    gnorm = float(np.linalg.norm(grad))
+    gnorm = float(np.linalg.norm(projected(x, grad)))
     return (x, np.array(history), r, gnorm <= gradient_tolerance * g0, steps, gnorm,
             covariance, J)
 

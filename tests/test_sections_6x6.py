@@ -58,7 +58,7 @@ import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
 import simsoft_jax as sj  # noqa: E402
-from simsoft_jax import assembly, element, lie, linalg, loads, sections  # noqa: E402
+from simsoft_jax import assembly, lie, linalg, loads, sections  # noqa: E402
 from simsoft_jax.dynamics import element_inertia  # noqa: E402
 from simsoft_jax.dynamics.residual import residual_and_iteration_matrix  # noqa: E402
 from simsoft_jax.dynamics.scheme import iteration_factors  # noqa: E402
