@@ -292,8 +292,10 @@ def fit_groups(obs: ObservationSet, groups: Sequence[Group], max_steps: int = 10
                     np.asarray(history), bool(converged), int(steps))
 
 
-def print_fit(fit: GroupFit, out=sys.stdout):
-    """Each group's fitted scale +- std and value range, then the correlations."""
+def print_fit(fit: GroupFit, out=None):
+    """Each group's fitted scale +- std and value range, then the correlations (to
+    ``out``, default stdout)."""
+    out = sys.stdout if out is None else out
     for j, g in enumerate(fit.groups):
         lo, hi = fit.value_range[g.label]
         unit = "" if g.param in ("E", "G") else f" {g.param} "
