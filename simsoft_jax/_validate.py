@@ -96,14 +96,16 @@ def plain(value: Any, path: str = "") -> Any:
         return out
     if isinstance(value, (list, tuple, np.ndarray)):
         return [plain(item, index(path, i)) for i, item in enumerate(value)]
+    # NumPy scalars first: np.float64 subclasses float and np.str_ subclasses str, and
+    # their repr (``np.float64(0.5)``) is not valid TOML
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
-    if isinstance(value, (str, int, float)):
-        return value
-    if isinstance(value, np.integer):
+    if isinstance(value, (np.integer, int)):
         return int(value)
-    if isinstance(value, np.floating):
+    if isinstance(value, (np.floating, float)):
         return float(value)
+    if isinstance(value, str):
+        return str(value)
     fail(path, f"unsupported value {describe(value)}")
 
 

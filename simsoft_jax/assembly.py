@@ -24,7 +24,8 @@ from . import element, lie
 from .model import Model
 from .terms import ElementData, element_state
 from .terms import autodiff as term_tangents
-from .terms import point_in_element
+from .terms import masses as mass_term
+from .terms import offset_loads, point_in_element
 
 TANGENTS = ("closed_form", "autodiff")
 
@@ -181,6 +182,56 @@ def nodal_load_and_tangent(model: Model, lam, R, tangent: str = "closed_form"):
     return r, k
 
 
+def attachments_and_tangents(model: Model, lam, R, v=None, vd=None, dynamic: bool = False):
+    """Node terms of the attached masses (:mod:`~simsoft_jax.terms.masses`) and of the dead
+    forces at offset points (:mod:`~simsoft_jax.terms.offset_loads`), scattered to the
+    nodes: residual (N,6) and its derivatives (N,6,6) in the rotation perturbation
+    ``R exp(theta)`` (K; translation columns zero: these terms do not depend on the
+    position), in the body velocity (C) and acceleration (M) (dynamics; None in
+    statics), all by ``jax.jacfwd`` on both tangent paths. None when the scene has
+    neither. ``v, vd`` (N,6): nodal body velocities and accelerations (dynamics)."""
+    s = model.structure
+    with_gravity = s.has_gravity
+    weighs = with_gravity or dynamic
+    if not (s.offset_load_nodes or (s.mass_nodes and weighs)):
+        return None
+    n, dtype = s.n_nodes, R.dtype
+    size = 15 if dynamic else 3          # theta (3); dV (6), dVdot (6) in dynamics
+    out = [jnp.zeros((n, 6), dtype), jnp.zeros((n, 6, 6), dtype)]
+    if dynamic:
+        out += [jnp.zeros((n, 6, 6), dtype), jnp.zeros((n, 6, 6), dtype)]
+
+    def scatter(nodes, one, *args):
+        idx = jnp.asarray(nodes)
+        zero = jnp.zeros(6, dtype)
+        V = v[idx] if dynamic else jnp.broadcast_to(zero, (len(nodes), 6))
+        Vd = vd[idx] if dynamic else jnp.broadcast_to(zero, (len(nodes), 6))
+
+        def value_and_jac(Ri, Vi, Vdi, *a):
+            def f(y):
+                value = one(Ri @ lie.exp_so3(y[:3]), Vi + y[3:9] if dynamic else Vi,
+                            Vdi + y[9:15] if dynamic else Vdi, *a)
+                return value, value
+            jac, value = jax.jacfwd(f, has_aux=True)(jnp.zeros(size, dtype))
+            return value, jac
+
+        value, jac = jax.vmap(value_and_jac)(R[idx], V, Vd, *args)
+        out[0] = out[0].at[idx].add(value)
+        out[1] = out[1].at[idx, :, 3:].add(jac[:, :, :3])
+        if dynamic:
+            out[2] = out[2].at[idx].add(jac[:, :, 3:9])
+            out[3] = out[3].at[idx].add(jac[:, :, 9:15])
+
+    if s.mass_nodes and weighs:
+        scatter(s.mass_nodes, lambda Ri, Vi, Vdi, m, c, J: mass_term.force(
+            Ri, Vi, Vdi, m, c, J, model.gravity, lam, with_gravity, dynamic),
+            model.mass, model.mass_offset, model.mass_inertia)
+    if s.offset_load_nodes:
+        scatter(s.offset_load_nodes, lambda Ri, Vi, Vdi, F, c: offset_loads.force(
+            Ri, F, c, lam), model.offset_force, model.offset_point)
+    return tuple(out) if dynamic else (out[0], out[1], None, None)
+
+
 def residual(model: Model, R, p, lam=1.0):
     """Global residual (N,6), held dofs zeroed (spec S47/S70): the sum of the terms."""
     s = model.structure
@@ -192,6 +243,9 @@ def residual(model: Model, R, p, lam=1.0):
     r = assemble_vector(s.n_nodes, s.element_nodes, f_el)
     if s.has_nodal_dead or s.has_nodal_follower:
         r = r + jax.vmap(_nodal_load(model, lam))(R, model.nodal_dead, model.nodal_follower)
+    attached = attachments_and_tangents(model, lam, R)
+    if attached is not None:
+        r = r + attached[0]
     return r * s.free_mask()
 
 
@@ -212,7 +266,8 @@ def residual_and_tangent(model: Model, R, p, lam=1.0, tangent: str = "closed_for
             # elastic stress and loads in closed form (spec S42, S44); follower loads by jacfwd
             P = element.strain_map(d)
             return element_force_and_tangent(
-                P, d, stiffness * (d - d0) / length, jnp.diag(stiffness / length), RA, length,
+                P, d, element.section_stress(stiffness, (d - d0) / length),
+                element.section_stress_jacobian(stiffness, length), RA, length,
                 dead, follower, rho_a, q_world, q_local)
 
         f_el, k_el = jax.vmap(value_and_jac)(*_element_args(model, R, p))
@@ -225,6 +280,9 @@ def residual_and_tangent(model: Model, R, p, lam=1.0, tangent: str = "closed_for
         f_n, k_n = nodal_load_and_tangent(model, lam, R, tangent)
         r = r + f_n
         diag = diag + k_n
+    attached = attachments_and_tangents(model, lam, R)
+    if attached is not None:
+        r, diag = r + attached[0], diag + attached[1]
     return apply_constraints(s.free_mask(), r, (diag, upper, lower))
 
 

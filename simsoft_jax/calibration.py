@@ -62,8 +62,19 @@ def apply_scales(model: Model, names: Sequence[str], log_scale) -> Model:
     for j, name in enumerate(names):
         field, columns = PARAMETERS[name]
         factors[field] = factors[field].at[jnp.array(columns)].add(log_scale[j])
-    return model.replace(stiffness=model.stiffness * jnp.exp(factors["stiffness"]),
+    return model.replace(stiffness=scale_stiffness(model.stiffness, jnp.exp(factors["stiffness"])),
                          viscosity=model.viscosity * jnp.exp(factors["viscosity"]))
+
+
+def scale_stiffness(stiffness, factors):
+    """Stiffness with its diagonal entries scaled by ``factors`` (6,) (or (E,6)): a
+    diagonal table (E,6) times the factors; a coupled one (E,6,6) as ``S K S`` with
+    ``S = diag(sqrt(factors))``, which scales each diagonal entry by its factor, each
+    coupling by the geometric mean of its two, and keeps K symmetric positive definite."""
+    if stiffness.ndim == 3:
+        root = jnp.sqrt(factors)
+        return stiffness * root[..., :, None] * root[..., None, :]
+    return stiffness * factors
 
 
 class Fit(NamedTuple):
@@ -106,7 +117,8 @@ def _lbfgs_descent():
 
 
 def minimize(residual_fn: Callable, x0, optimizer=None, max_steps: int = 100,
-             gradient_tolerance: float = 1e-6, noise_std: float | None = None):
+             gradient_tolerance: float = 1e-6, noise_std: float | None = None,
+             bounds=None):
     """Minimise ``0.5 |r(x)|^2`` with optax; ``residual_fn(x) -> (r (n,), ok)`` traceable.
 
     One compiled function returns ``r``, the sensitivity ``J = dr/dx`` (forward mode,
@@ -117,8 +129,20 @@ def minimize(residual_fn: Callable, x0, optimizer=None, max_steps: int = 100,
     ``|grad| <= gradient_tolerance |grad_0|``, when the loss stops decreasing, or after
     ``max_steps``; a solve that fails to converge raises RuntimeError. Returns ``(x,
     loss_history, r, converged, steps, gradient_norm, covariance, J)``; converged: the
-    gradient criterion was met (covariance as in the module docstring).
+    gradient criterion was met (covariance as in the module docstring). ``bounds =
+    (lo, hi)`` (P,) each: box on x (log scales); trial points are projected onto it and
+    the stopping test uses the projected gradient (components pushing out of an active
+    bound are dropped).
     """
+    lo, hi = ((np.full(len(x0), -np.inf), np.full(len(x0), np.inf)) if bounds is None
+              else (np.asarray(bounds[0], float), np.asarray(bounds[1], float)))
+
+    def projected(x, grad):
+        out = grad.copy()
+        out[(x <= lo) & (grad > 0)] = 0.0
+        out[(x >= hi) & (grad < 0)] = 0.0
+        return out
+
     search = optimizer is None
     optimizer = _lbfgs_descent() if search else optimizer
     evaluate = jit(lambda x: (*residual_fn(x), jax.jacfwd(lambda y: residual_fn(y)[0])(x)))
@@ -131,18 +155,20 @@ def minimize(residual_fn: Callable, x0, optimizer=None, max_steps: int = 100,
         r, J = np.asarray(r), np.asarray(J)
         return 0.5 * float(r @ r), r, J
 
-    x = np.asarray(x0, float)
+    x = np.clip(np.asarray(x0, float), lo, hi)
     value, r, J = loss_terms(x)
     grad = J.T @ r
     g0 = max(float(np.linalg.norm(grad)), 1e-300)
     state = optimizer.init(jnp.asarray(x))
     history, steps = [value], 0
-    while steps < max_steps and np.linalg.norm(grad) > gradient_tolerance * g0:
+    while (steps < max_steps
+           and np.linalg.norm(projected(x, grad)) > gradient_tolerance * g0):
         updates, state = optimizer.update(jnp.asarray(grad), state, jnp.asarray(x))
         updates = np.asarray(updates)
         alpha, slope = 1.0, float(grad @ updates)
         while True:
-            trial = x + alpha * updates
+            trial = np.clip(x + alpha * updates, lo, hi)
+            slope = float(grad @ (trial - x)) / alpha
             t_value, t_r, t_J = loss_terms(trial)
             if not search or t_value <= value + 1e-4 * alpha * slope or alpha < 1e-6:
                 break
@@ -156,7 +182,7 @@ def minimize(residual_fn: Callable, x0, optimizer=None, max_steps: int = 100,
     dof = max(len(r) - len(x), 1)
     variance = noise_std ** 2 if noise_std is not None else float(r @ r) / dof
     covariance = variance * np.linalg.pinv(J.T @ J)
-    gnorm = float(np.linalg.norm(grad))
+    gnorm = float(np.linalg.norm(projected(x, grad)))
     return (x, np.array(history), r, gnorm <= gradient_tolerance * g0, steps, gnorm,
             covariance, J)
 
@@ -165,7 +191,8 @@ def _make_fit(names, model: Model, result) -> Fit:
     """A :class:`Fit` from :func:`minimize`'s result; values relative to ``model``'s first
     element."""
     x, history, r, converged, steps, gnorm, covariance, J = result
-    nominal = {"stiffness": np.asarray(model.stiffness[0]),
+    first = np.asarray(model.stiffness[0])
+    nominal = {"stiffness": np.diag(first) if first.ndim == 2 else first,
                "viscosity": np.asarray(model.viscosity[0])}
     scale = np.exp(x)
     std = scale * np.sqrt(np.maximum(np.diag(covariance), 0.0))

@@ -1,4 +1,4 @@
-"""Command line: ``simsoft-jax run | validate | princeton | calibrate | bench``.
+"""Command line: ``simsoft-jax run | validate | princeton | calibrate | predict | bench``.
 
 * ``run SCENE -o OUT.json|.npz [--force] [--no-stability] [--no-progress] [--plot F.png]
   [--animate F.gif]``: solve a scene (exit 1 if not converged, 2 if the scene or the
@@ -9,7 +9,12 @@
 * ``princeton``: the 25 load cases of the Princeton beam, a results table and figures
   (seed Figs. 15-18 when ``--measurements`` are given);
 * ``calibrate --scenes S... --measurements M.csv --params EIy,EIz,GJ -o fitted.json``:
-  fit sectional parameters to measured positions;
+  fit sectional parameters to measured positions; with an observation file (points at
+  offsets, displacements, rotations/twist, reference cases, std), parameters by groups
+  (``EIy@0-5=0.5:2`` or ``--groups groups.toml``) and ``--split N`` (every N-th row held
+  out and predicted);
+* ``predict --fitted fitted.json --scenes S... --measurements held_out.csv``: per-row
+  predictions and errors with a fitted result;
 * ``bench [--quick] [--only NAMES] [--out DIR]``: the benchmark suite of the source
   checkout (tables, plots, JSON; see benchmarks/README.md).
 
@@ -168,12 +173,15 @@ def _princeton(args) -> int:
 def _calibrate(args) -> int:
     import json
     from .calibration import fit_static
-    from .measurements import static_targets
+    from .measurements import is_observation_file, static_targets
     from .scene import load_scene
+    if args.groups or args.split or (Path(args.measurements).is_file()
+                                     and is_observation_file(args.measurements)):
+        return _calibrate_observations(args)
     try:
         scenes = [load_scene(path) for path in args.scenes]
         targets = static_targets(args.measurements, scenes)
-        fit = fit_static(targets, args.params, max_steps=args.max_steps)
+        fit = fit_static(targets, args.params or "", max_steps=args.max_steps)
     except (ValueError, RuntimeError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
@@ -185,6 +193,104 @@ def _calibrate(args) -> int:
         Path(args.output).write_text(json.dumps(fit.to_dict(), indent=1))
         print(f"wrote {args.output}")
     return 0
+
+
+def _observations(args, path):
+    """Scenes and the observation set of ``path`` (CLI helper)."""
+    from .measurements import observation_set
+    from .scene import load_scene
+    return observation_set(path, [load_scene(p) for p in args.scenes])
+
+
+def _print_rows(obs, predicted, title):
+    """Per-row prediction, measurement, error and error / std, then the rms."""
+    print(f"{title}: {len(obs.rows)} rows")
+    print(f"{'line':>5s} {'scene':>16s} {'quantity':>8s} {'predicted':>12s} {'measured':>12s} "
+          f"{'error':>11s} {'error/std':>9s}")
+    for row, pred in zip(obs.rows, predicted):
+        err = pred - row.value
+        print(f"{row.line:5d} {row.scene[-16:]:>16s} {row.quantity:>8s} {pred:12.6g} "
+              f"{row.value:12.6g} {err:11.4g} {err / row.std:9.3f}")
+    err = np.asarray(predicted) - obs.value
+    print(f"rms error {np.sqrt(np.mean(err ** 2)):.4g}; rms error/std "
+          f"{np.sqrt(np.mean((err / obs.std) ** 2)):.4g}")
+
+
+def _calibrate_observations(args) -> int:
+    """``calibrate`` with an observation file, groups (``--params`` items or ``--groups``
+    TOML) and an optional ``--split N`` (every N-th row held out and predicted)."""
+    import json
+    from .calibration_groups import fit_groups, load_groups, parse_groups, predict, print_fit
+    try:
+        if not args.params and not args.groups:
+            raise ValueError("params: give --params or --groups")
+        groups = (load_groups(args.groups) if args.groups else ()) + (
+            parse_groups(args.params) if args.params else ())
+        obs = _observations(args, args.measurements)
+        held = np.zeros(len(obs.rows), bool)
+        if args.split:
+            if args.split < 2:
+                raise ValueError(f"split: must be >= 2 (every N-th row held out), got {args.split}")
+            held[args.split - 1::args.split] = True
+        fit = fit_groups(obs.subset(~held), groups, max_steps=args.max_steps)
+        held_pred = predict(obs.subset(held), groups, fit.scale) if held.any() else None
+    except (ValueError, RuntimeError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    print_fit(fit)
+    print(f"rms residual {fit.rms:.4g} over {int((~held).sum())} fitted rows; loss "
+          f"{fit.loss_history[0]:.4g} -> {fit.loss_history[-1]:.4g} in {fit.iterations} steps")
+    if held_pred is not None:
+        _print_rows(obs.subset(held), held_pred, "held-out rows (--split)")
+    if args.output:
+        Path(args.output).write_text(json.dumps(fit.to_dict(), indent=1))
+        print(f"wrote {args.output}")
+    return 0
+
+
+def _predict(args) -> int:
+    """``predict --fitted F.json --scenes S... --measurements M.csv``: per-row predictions
+    with the fitted group scales, and their errors."""
+    import json
+    from .calibration_groups import groups_from_dict, predict
+    try:
+        try:
+            fitted = json.loads(Path(args.fitted).read_text())
+        except (OSError, ValueError) as err:
+            raise ValueError(f"fitted: cannot read {args.fitted}: {err}") from None
+        groups, scale = groups_from_dict(fitted)
+        obs = _observations(args, args.measurements)
+        predicted = predict(obs, groups, scale)
+    except (ValueError, RuntimeError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    _print_rows(obs, predicted, f"predictions with {args.fitted}")
+    return 0
+
+
+def _add_calibration_commands(sub):
+    """The ``calibrate`` and ``predict`` sub-commands."""
+    p_cal = sub.add_parser("calibrate", help="fit section parameters to measurements")
+    p_cal.add_argument("--scenes", nargs="+", required=True, help="static scene files")
+    p_cal.add_argument("--measurements", required=True,
+                       help="CSV: scene,rod,node,x,y,z (positions) or the observation "
+                       "layout scene,rod,node,[offset_x,offset_y,offset_z,]quantity,value"
+                       "[,std,reference]")
+    p_cal.add_argument("--params", help="e.g. EIy,EIz,GJ (or E,G); with an observation "
+                       "file also groups EIy@0-5, EIy@wing:0-5, bounds EIy@0-5=0.5:2")
+    p_cal.add_argument("--groups", help="TOML file of [[groups]] (param, rod, elements, "
+                       "bounds, name)")
+    p_cal.add_argument("--split", type=int, default=0,
+                       help="hold out every N-th row (N >= 2) and predict it after the fit")
+    p_cal.add_argument("--max-steps", type=int, default=100)
+    p_cal.add_argument("-o", "--output", help="fitted parameters (.json)")
+    p_cal.set_defaults(func=_calibrate)
+    p_pre = sub.add_parser("predict", help="predict measurements with a fitted result")
+    p_pre.add_argument("--fitted", required=True, help="JSON written by calibrate -o "
+                       "(observation layout)")
+    p_pre.add_argument("--scenes", nargs="+", required=True, help="static scene files")
+    p_pre.add_argument("--measurements", required=True, help="observation CSV")
+    p_pre.set_defaults(func=_predict)
 
 
 def _bench(bench_args: list) -> int:
@@ -257,13 +363,7 @@ def main(argv=None) -> int:
     p_pr.add_argument("--measurements", help="measured deflections CSV (simsoft_jax.princeton)")
     p_pr.add_argument("--out", default="out/princeton", help="output folder")
     p_pr.set_defaults(func=_princeton)
-    p_cal = sub.add_parser("calibrate", help="fit section parameters to measured positions")
-    p_cal.add_argument("--scenes", nargs="+", required=True, help="static scene files")
-    p_cal.add_argument("--measurements", required=True, help="CSV: scene,rod,node,x,y,z")
-    p_cal.add_argument("--params", required=True, help="e.g. EIy,EIz,GJ (or E,G)")
-    p_cal.add_argument("--max-steps", type=int, default=100)
-    p_cal.add_argument("-o", "--output", help="fitted parameters (.json)")
-    p_cal.set_defaults(func=_calibrate)
+    _add_calibration_commands(sub)
     sub.add_parser("bench", add_help=False,     # listed in --help; dispatched below
                    help="run the benchmarks (benchmarks/run_all.py; bench --help for options)")
     argv = sys.argv[1:] if argv is None else list(argv)

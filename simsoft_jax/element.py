@@ -45,16 +45,44 @@ def strain_map(d):
                       [zero, -minus_rot, zero, plus_rot]])
 
 
+def section_stress(stiffness, strain):
+    """Section stress resultant ``K eps`` (6,) (spec S28, S39) of the strain ``eps`` (6,)
+    ``[eps_x, gamma_y, gamma_z, kappa_x, kappa_y, kappa_z]``.
+
+    ``stiffness`` is either the diagonal (6,) ``[EA, GAy, GAz, GJ, EIy, EIz]`` (N, N m^2)
+    or a full symmetric positive definite matrix (6,6) with couplings (units N, N m,
+    N m^2 by block); which one is a static property of the array's shape, so an uncoupled
+    scene traces exactly the diagonal product.
+    """
+    if stiffness.ndim == 2:
+        return stiffness @ strain
+    return stiffness * strain
+
+
+def section_stress_jacobian(stiffness, length):
+    """``d stress / d d`` (6,6) of the elastic stress ``K (d - d0)/L``: ``K / L`` for a
+    (6,6) ``stiffness``, ``diag(K) / L`` for a diagonal (6,); ``length`` in m."""
+    if stiffness.ndim == 2:
+        return stiffness / length
+    return jnp.diag(stiffness / length)
+
+
+def strain_energy(d, d0, length, stiffness):
+    """Element strain energy ``(L/2) eps^T K eps`` (J) with ``eps = (d - d0)/L`` (S36)."""
+    strain = (d - d0) / length
+    return 0.5 * length * jnp.dot(strain, section_stress(stiffness, strain))
+
+
 def internal_force(P, d, d0, length, stiffness):
     """Elastic nodal forces ``P(d)^T K (d - d0)/L`` (12,) (seed eq. 48, spec S36, S39).
 
     ``P = strain_map(d)`` is passed in so that callers computing it once can share it.
-    ``stiffness`` is the diagonal ``[EA, GAy, GAz, GJ, EIy, EIz]`` (N, N m^2), ``length`` in m.
-    The result is the exact gradient of the element energy ``(L/2) eps^T K eps`` under
-    right perturbations of the two nodal frames.
+    ``stiffness``: the diagonal (6,) or the full symmetric matrix (6,6)
+    (:func:`section_stress`), ``length`` in m. The result is the exact gradient of the
+    element energy ``(L/2) eps^T K eps`` (:func:`strain_energy`) under right perturbations
+    of the two nodal frames.
     """
-    strain = (d - d0) / length
-    return P.T @ (stiffness * strain)
+    return P.T @ section_stress(stiffness, (d - d0) / length)
 
 
 def _w2(w, a):

@@ -1,6 +1,10 @@
-"""Measured node positions of static scenes, read from CSV for calibration.
+"""Measurements of static scenes, read from CSV for calibration and prediction.
 
-Layout (header required)::
+Two layouts. The observation layout (a ``quantity`` column; :func:`read_observations`)
+says per row which point (node and offset in the section frame), which quantity
+(position, displacement or rotation component, twist), its value and standard deviation,
+and optionally the reference case it is relative to. The original position layout
+(header required)::
 
     scene,rod,node,x,y,z
     princeton_0deg,beam,-1,0.5079,,-0.0107
@@ -15,7 +19,7 @@ from __future__ import annotations
 
 import csv
 from pathlib import Path
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
@@ -109,3 +113,190 @@ def static_targets(path, scenes: Sequence) -> list[StaticTarget]:
         values = np.array([[0.0 if v is None else v for v in xyz] for _, xyz in rows])
         targets.append(StaticTarget(models[name], nodes, values, mask))
     return targets
+
+
+# ----------------------------------------------------------------------------- observations
+OBSERVATION_COLUMNS = ("scene", "rod", "node", "quantity", "value")
+OPTIONAL_COLUMNS = ("offset_x", "offset_y", "offset_z", "std", "reference")
+QUANTITIES = {"x": ("position", 0), "y": ("position", 1), "z": ("position", 2),
+              "ux": ("displacement", 0), "uy": ("displacement", 1),
+              "uz": ("displacement", 2), "rx": ("rotation", 0), "ry": ("rotation", 1),
+              "rz": ("rotation", 2), "twist": ("rotation", 0)}
+KINDS = ("position", "displacement", "rotation")
+
+
+class Observation(NamedTuple):
+    """One row of an observation file (see :func:`read_observations`)."""
+    line: int
+    scene: str
+    rod: str
+    node: int
+    offset: tuple
+    quantity: str
+    value: float
+    std: float
+    reference: str | None
+
+
+def is_observation_file(path) -> bool:
+    """True when the CSV has a ``quantity`` column (the observation layout)."""
+    with Path(path).open(newline="") as handle:
+        return "quantity" in (csv.DictReader(handle).fieldnames or [])
+
+
+def _number(path, line, row, key, default=None, positive=False):
+    text = (row.get(key) or "").strip()
+    if not text:
+        if default is None:
+            _fail(path, line, key, "empty")
+        return default
+    try:
+        value = float(text)
+    except ValueError:
+        _fail(path, line, key, f"not a number: {text!r}")
+    if not np.isfinite(value):
+        _fail(path, line, key, "not finite")
+    if positive and value <= 0.0:
+        _fail(path, line, key, f"must be > 0, got {text}")
+    return value
+
+
+def read_observations(path) -> list[Observation]:
+    """Rows of an observation CSV (header required; extra columns are ignored)::
+
+        scene,rod,node,offset_x,offset_y,offset_z,quantity,value,std,reference
+        bend_1.0kg,wing,-1,0.0,0.03,0.0,uz,-0.0811,0.0005,bend_0kg
+        tors_1.0kg,wing,-1,,,,twist,0.0523,0.002,tors_0kg
+
+    scene: a scene's ``name``; rod, node (negative from the end) as in scene files;
+    offset_x/y/z: the observed point in the node's section frame (m; empty = 0), so
+    ``x = p + R offset``. quantity: ``x``, ``y``, ``z`` (world position of the point, m),
+    ``ux``, ``uy``, ``uz`` (its displacement, m), ``rx``, ``ry``, ``rz`` (rotation of
+    the section, rad: components of ``log(R_ref^T R)``, i.e. about the reference
+    section's own axes), ``twist`` (= ``rx``, about the rod axis). value: the measured
+    value (m or rad). std: its standard deviation (same unit; empty = 1, unweighted):
+    residuals are divided by it. reference: optional name of the scene the row is
+    relative to (the same rod and node there, e.g. the unloaded self-weight state):
+    displacements and rotations are taken from that scene's equilibrium instead of the
+    stress-free start, and a position becomes the difference of the two positions.
+    Every error names the file, the line and the column.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"measurements: no such file {str(path)!r}")
+    with path.open(newline="") as handle:
+        reader = csv.DictReader(handle)
+        missing = [c for c in OBSERVATION_COLUMNS if c not in (reader.fieldnames or [])]
+        if missing:
+            raise ValueError(f"measurements: {path.name} lacks column(s) {missing} "
+                             f"(need {list(OBSERVATION_COLUMNS)}, optional "
+                             f"{list(OPTIONAL_COLUMNS)})")
+        rows = []
+        for line, row in enumerate(reader, start=2):
+            for key in ("scene", "rod", "node", "quantity"):
+                if not (row[key] or "").strip():
+                    _fail(path, line, key, "empty")
+            try:
+                node = int(row["node"])
+            except ValueError:
+                _fail(path, line, "node", f"not an integer: {row['node']!r}")
+            quantity = row["quantity"].strip()
+            if quantity not in QUANTITIES:
+                _fail(path, line, "quantity", f"unknown quantity {quantity!r} (choose from "
+                      f"{', '.join(QUANTITIES)})")
+            offset = tuple(_number(path, line, row, f"offset_{a}", 0.0) for a in "xyz")
+            reference = (row.get("reference") or "").strip() or None
+            rows.append(Observation(line, row["scene"].strip(), row["rod"].strip(), node,
+                                    offset, quantity, _number(path, line, row, "value"),
+                                    _number(path, line, row, "std", 1.0, positive=True),
+                                    reference))
+    if not rows:
+        raise ValueError(f"measurements: {path.name} has no data rows")
+    return rows
+
+
+class ObservationSet(NamedTuple):
+    """Observation rows resolved against scenes. models: one Model per scene used (rows'
+    scenes and references), in ``names`` order; per row (n,): model (index), node
+    (global node index in its model), ref_model (-1: the model's own start state),
+    ref_node, kind (index in :data:`KINDS`), component (0..2), offset (n,3), value,
+    std; rows: the :class:`Observation` tuples; path: the file."""
+    names: tuple
+    models: tuple
+    model: np.ndarray
+    node: np.ndarray
+    ref_model: np.ndarray
+    ref_node: np.ndarray
+    kind: np.ndarray
+    component: np.ndarray
+    offset: np.ndarray
+    value: np.ndarray
+    std: np.ndarray
+    rows: tuple
+    path: str
+
+    def subset(self, keep) -> "ObservationSet":
+        """The rows where ``keep`` (n,) is True (same models)."""
+        keep = np.asarray(keep, bool)
+        arrays = {f: getattr(self, f)[keep] for f in ("model", "node", "ref_model",
+                                                        "ref_node", "kind", "component",
+                                                        "offset", "value", "std")}
+        return self._replace(rows=tuple(r for r, k in zip(self.rows, keep) if k), **arrays)
+
+
+def observation_set(path, scenes: Sequence) -> ObservationSet:
+    """Resolve the rows of ``path`` (:func:`read_observations`) against validated static
+    ``scenes`` (unique names); errors name the file, line and column."""
+    path = Path(path)
+    by_name = {}
+    for scene in scenes:
+        if scene.solver.kind != "static":
+            raise ValueError(f"scenes: {scene.name!r} is a {scene.solver.kind} scene; "
+                             f"calibration needs static scenes")
+        if scene.name in by_name:
+            raise ValueError(f"scenes: two scenes are named {scene.name!r}; names must be unique")
+        by_name[scene.name] = scene
+    names, models, index = [], [], {}
+
+    def model_of(name, line, column):
+        if name not in by_name:
+            _fail(path, line, column, f"unknown scene {name!r} (given: {sorted(by_name)})")
+        if name not in index:
+            index[name] = len(models)
+            names.append(name)
+            models.append(build_model(by_name[name]))
+        return index[name]
+
+    def node_of(m, name, rod, node, line):
+        structure = models[m].structure
+        rods = [r.name for r in structure.rods]
+        if rod not in rods:
+            _fail(path, line, "rod", f"scene {name!r} has no rod {rod!r} (rods: {rods})")
+        info = structure.rod(rod)
+        if not -info.nodes <= node < info.nodes:
+            _fail(path, line, "node", f"rod {rod!r} of scene {name!r} has nodes "
+                  f"0..{info.nodes - 1} (or -{info.nodes}..-1), got {node}")
+        return info.first_node + node % info.nodes
+
+    rows = read_observations(path)
+    cols = {k: [] for k in ("model", "node", "ref_model", "ref_node", "kind", "component")}
+    for row in rows:
+        m = model_of(row.scene, row.line, "scene")
+        cols["model"].append(m)
+        cols["node"].append(node_of(m, row.scene, row.rod, row.node, row.line))
+        if row.reference is None:
+            cols["ref_model"].append(-1)
+            cols["ref_node"].append(0)
+        else:
+            r = model_of(row.reference, row.line, "reference")
+            cols["ref_model"].append(r)
+            cols["ref_node"].append(node_of(r, row.reference, row.rod, row.node, row.line))
+        kind, component = QUANTITIES[row.quantity]
+        cols["kind"].append(KINDS.index(kind))
+        cols["component"].append(component)
+    return ObservationSet(tuple(names), tuple(models),
+                          **{k: np.array(v, int) for k, v in cols.items()},
+                          offset=np.array([r.offset for r in rows], float),
+                          value=np.array([r.value for r in rows], float),
+                          std=np.array([r.std for r in rows], float),
+                          rows=tuple(rows), path=str(path))

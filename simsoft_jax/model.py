@@ -57,6 +57,9 @@ class Structure:
     has_gravity: bool = False
     has_viscosity: bool = False   # Kelvin-Voigt terms traced in dynamics
     has_mass_damping: bool = False  # mass-proportional damping traced in dynamics
+    coupled_stiffness: bool = False   # Model.stiffness is (E,6,6) (couplings), else (E,6)
+    mass_nodes: tuple = ()        # node of each attached mass ([[masses]])
+    offset_load_nodes: tuple = () # node of each world-frame force at an offset point
     inertia_kind: str = "consistent"   # "consistent" | "lumped" element inertia
     drive_nodes: tuple = ()       # node index of each drive
     slide_drives: tuple = ()      # indices (into the drives) of the sliding ones
@@ -83,7 +86,9 @@ class Model:
     R0 (N,3,3), p0 (N,3): configuration the solvers start from (columns of R0 are the
     local axes in world coordinates). d0 (E,6): stress-free relative twists (spec S34).
     length (E,): reference element lengths ``|d0_U|`` (S35). stiffness, inertia,
-    viscosity (E,6): sectional diagonals ``K``, ``M``, ``Upsilon`` (S28, S29).
+    viscosity (E,6): sectional diagonals ``K``, ``M``, ``Upsilon`` (S28, S29); stiffness
+    is (E,6,6), full symmetric matrices, when the scene has couplings
+    (``structure.coupled_stiffness``).
     mass_damping (E,): mass-proportional damping constant of each element (1/s,
     :mod:`~simsoft_jax.terms.mass_damping`).
     nodal_dead (N,6): world-frame force and moment per node (dead loads).
@@ -100,6 +105,11 @@ class Model:
     drive tables (world frame, relative to the start pose); drive_slide (D,3): unit world
     direction along which a drive's node slides (zeros for drives holding all six dofs).
     char_length: length scale (m) that makes moments comparable with forces in norms.
+    mass (K,), mass_offset (K,3), mass_inertia (K,3,3): attached masses (kg), their centre
+    (m) and inertia about it (kg m^2), section frame of node ``structure.mass_nodes[k]``
+    (:mod:`simsoft_jax.terms.masses`). offset_force (L,3) world (N), offset_point (L,3)
+    section frame (m): dead forces at offset points of nodes
+    ``structure.offset_load_nodes`` (:mod:`simsoft_jax.terms.offset_loads`).
     """
     structure: Structure
     R0: jax.Array
@@ -125,6 +135,11 @@ class Model:
     drive_displacement: jax.Array
     drive_rotation: jax.Array
     drive_slide: jax.Array
+    mass: jax.Array
+    mass_offset: jax.Array
+    mass_inertia: jax.Array
+    offset_force: jax.Array
+    offset_point: jax.Array
 
     def replace(self, **changes) -> "Model":
         """A copy with some arrays replaced (same structure: no recompilation)."""
@@ -146,6 +161,40 @@ def _rod_constants(rod):
     V = (viscosity_diagonal(rod.section, rod.material) if rod.section is not None
          else np.zeros(6))
     return np.asarray(K, float), np.asarray(M, float), np.asarray(V, float)
+
+
+def _split_offset_loads(loads):
+    """Scene loads -> (loads for the nodal/channel arrays, world-frame forces at an offset
+    point). A follower force at an offset ``c`` becomes the force and the constant moment
+    ``c x F`` (section frame), with the same time law; a dead one stays a force at its
+    point (:mod:`simsoft_jax.terms.offset_loads`; constant profile only, scene.py)."""
+    plain, at_offset = [], []
+    for ld in loads:
+        if ld.offset is None or not np.any(ld.offset):
+            plain.append(ld)
+        elif ld.frame == "world":
+            at_offset.append(ld)
+        else:
+            plain += [dataclasses.replace(ld, offset=None),
+                      dataclasses.replace(ld, kind="moment", offset=None,
+                                          vector=np.cross(ld.offset, ld.vector))]
+    return plain, at_offset
+
+
+def _stiffness_table(pieces):
+    """Per-element stiffness from ``[(K, elements), ...]`` (K (6,) or (6,6)): (E,6) of the
+    diagonals when no piece has couplings (a 6x6 matrix that is diagonal gives exactly
+    its diagonal, so the uncoupled path is used), else (E,6,6) for every element.
+    Returns the table and whether it is coupled (the static flag)."""
+    def diagonal_of(K):
+        return np.diag(K) if K.ndim == 2 and not np.any(K - np.diag(np.diag(K))) else K
+
+    pieces = [(diagonal_of(K), n) for K, n in pieces]
+    coupled = any(K.ndim == 2 for K, _ in pieces)
+    if coupled:
+        full = [K if K.ndim == 2 else np.diag(K) for K, _ in pieces]
+        return np.concatenate([np.tile(K, (n, 1, 1)) for K, (_, n) in zip(full, pieces)]), True
+    return np.concatenate([np.tile(K, (n, 1)) for K, n in pieces]), False
 
 
 def _world_frames(rod):
@@ -260,7 +309,7 @@ def build_model(scene) -> Model:
         d0.append(_reference_twists(R_ref, p_ref))
         for piece in (rod.segments or (rod,)):
             Kr, Mr, Vr = _rod_constants(piece)
-            K.append(np.tile(Kr, (piece.elements, 1)))
+            K.append((Kr, piece.elements))
             M.append(np.tile(Mr, (piece.elements, 1)))
             V.append(np.tile(Vr, (piece.elements, 1)))
             material = getattr(piece, "material", None)
@@ -293,8 +342,9 @@ def build_model(scene) -> Model:
     dist_local = np.zeros((n_elements, 3))
     point_dead, point_follower = np.zeros((n_elements, 6)), np.zeros((n_elements, 6))
     point_xi = np.full(n_elements, 0.5)
-    constant = [ld for ld in scene.loads if ld.profile.kind == "constant"]
-    timed = [ld for ld in scene.loads if ld.profile.kind != "constant"]
+    loads, offset_loads = _split_offset_loads(scene.loads)
+    constant = [ld for ld in loads if ld.profile.kind == "constant"]
+    timed = [ld for ld in loads if ld.profile.kind != "constant"]
     for load in constant:
         info = by_name[load.rod]
         if load.kind == "distributed_force":
@@ -311,10 +361,11 @@ def build_model(scene) -> Model:
 
     d0 = np.concatenate(d0)
     length = np.linalg.norm(d0[:, :3], axis=1)
+    K, coupled = _stiffness_table(K)
     gravity = np.zeros(3) if scene.gravity is None else np.asarray(scene.gravity, float)
     V = np.concatenate(V)
     times, disp, rot, slide, drive_nodes, sliding = _drive_tables(scene, by_name)
-    loads = scene.loads
+    masses = getattr(scene, "masses", ())
     for load in loads:
         if load.element is not None:
             point_xi[by_name[load.rod].first_element + load.element] = load.xi
@@ -334,18 +385,26 @@ def build_model(scene) -> Model:
         has_gravity=scene.gravity is not None,
         has_viscosity=bool(np.any(V != 0.0)),
         has_mass_damping=bool(np.any(np.concatenate(C) != 0.0)),
+        coupled_stiffness=coupled,
         inertia_kind=getattr(scene.solver, "inertia", "consistent"),
         drive_nodes=drive_nodes, slide_drives=sliding,
+        mass_nodes=tuple(by_name[m.rod].first_node + m.node for m in masses),
+        offset_load_nodes=tuple(by_name[ld.rod].first_node + ld.node for ld in offset_loads),
     )
     arrays = dict(
-        R0=R0, p0=p0, d0=d0, length=length, stiffness=np.concatenate(K),
+        R0=R0, p0=p0, d0=d0, length=length, stiffness=K,
         inertia=np.concatenate(M), viscosity=V, mass_damping=np.concatenate(C),
         nodal_dead=nodal_dead,
         nodal_follower=nodal_follower, distributed_world=dist_world,
         distributed_local=dist_local, element_point_dead=point_dead,
         element_point_follower=point_follower, element_point_xi=point_xi, gravity=gravity,
         char_length=length.mean(), v0=_initial_velocities(scene, by_name, R0, p0),
-        drive_times=times, drive_displacement=disp, drive_rotation=rot, drive_slide=slide)
+        drive_times=times, drive_displacement=disp, drive_rotation=rot, drive_slide=slide,
+        mass=[m.mass for m in masses],
+        mass_offset=np.reshape([m.offset for m in masses], (-1, 3)),
+        mass_inertia=np.reshape([m.inertia for m in masses], (-1, 3, 3)),
+        offset_force=np.reshape([ld.vector for ld in offset_loads], (-1, 3)),
+        offset_point=np.reshape([ld.offset for ld in offset_loads], (-1, 3)))
     # one batched transfer (a device_put per array costs more than the arrays' numbers)
     arrays = jax.device_put({k: np.asarray(a, np.float64) for k, a in arrays.items()})
     return Model(structure=structure, channels=build_channels(timed, structure), **arrays)

@@ -23,13 +23,13 @@ from ._validate import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, fa
                         readonly, require, rodrigues, rotation_vector, string, table,
                         toml_document, vector)
 from .materials import BUILTIN_MATERIALS, Material, get_material
+from .scene_attachments import parse_masses, parse_offset, parse_stiffness
 from .scene_initial import parse_initial
 from .scene_limits import (MAX_ELEMENTS, MAX_STEPS, check_elements, check_loads_on_held_nodes,
                            check_point_loads_in_elements, warn_short_features)
 from .scene_specs import (ConstraintSpec, GeometrySpec, InitialVelocitySpec, LoadSpec,
                           ProfileSpec, RodSpec, SegmentSpec, SolverSettings)
-from .sections import (Section, circle, custom_inertia, custom_stiffness, rectangle,
-                       semicircle, tube)
+from .sections import Section, circle, custom_inertia, rectangle, semicircle, tube
 from .supports import AXES, stress_free_frames, unheld_message
 
 __all__ = ["SolverSettings", "GeometrySpec", "RodSpec", "ConstraintSpec", "ProfileSpec",
@@ -49,6 +49,7 @@ class Scene(SpecBase):
     initial_velocity: tuple[InitialVelocitySpec, ...]
     source: str | None = None
     raw: dict = dataclasses.field(default_factory=dict)
+    masses: tuple = ()                # MassSpec per [[masses]] entry
 
     @classmethod
     def from_dict(cls, d: dict, base_dir: str | Path | None = None) -> "Scene":
@@ -75,7 +76,7 @@ class Scene(SpecBase):
 # ----------------------------------------------------------------------------- parsing
 
 _TOP_KEYS = ("name", "solver", "gravity", "materials", "rods", "constraints", "loads",
-             "initial_velocity")
+             "initial_velocity", "masses")
 _SOLVER_KEYS = ("kind", "tolerance", "max_iterations", "load_steps", "t_end", "dt",
                 "rho_inf", "save_every", "inertia", "tangent", "max_steps")
 _MATERIAL_KEYS = ("name", "E", "G", "nu", "density", "viscosity", "mass_damping")
@@ -87,7 +88,6 @@ _SECTIONS = {"circle": (circle, ("diameter",)),
              "tube": (tube, ("outer_diameter", "inner_diameter")),
              "rectangle": (rectangle, ("width", "height")),
              "semicircle": (semicircle, ("radius",))}
-_STIFFNESS_KEYS = ("EA", "GAy", "GAz", "GJ", "EIy", "EIz")
 _INERTIA_KEYS = ("rhoA", "rhoJ", "rhoIy", "rhoIz")
 _GEOMETRY_KEYS = {"straight": ("length",), "arc": ("radius", "angle_deg"),
                   "helix": ("radius", "pitch", "turns"), "polyline": ("points",)}
@@ -135,6 +135,7 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
     loads = tuple(_parse_load(item, index("loads", i), rods, base_dir)
                   for i, item in enumerate(_array_of_tables(raw, "loads")))
     velocities = _parse_velocities(_array_of_tables(raw, "initial_velocity"), rods)
+    masses = parse_masses(_array_of_tables(raw, "masses"), rods, _node)
     if solver.kind == "dynamic":
         warn_short_features(loads, constraints, solver.dt)
     check_loads_on_held_nodes(raw.get("loads", []), loads, constraints)
@@ -157,7 +158,7 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
                 raise ValueError(message)
     return Scene(name=name, solver=solver, gravity=gravity, rods=tuple(rods.values()),
                  constraints=constraints, loads=loads, initial_velocity=velocities,
-                 source=None, raw=raw)
+                 source=None, raw=raw, masses=masses)
 
 
 def _parse_solver(value: Any) -> SolverSettings:
@@ -237,12 +238,7 @@ def _parse_properties(r: dict, path: str, materials: dict[str, Material],
 
     stiffness = inertia = None
     if "stiffness" in r:
-        spath = join(path, "stiffness")
-        k = table(r["stiffness"], spath)
-        check_keys(k, spath, _STIFFNESS_KEYS, required=_STIFFNESS_KEYS)
-        args = {n: number(k[n], join(spath, n)) for n in _STIFFNESS_KEYS}
-        with prefixed(spath, _STIFFNESS_KEYS):
-            stiffness = custom_stiffness(**args)
+        stiffness = parse_stiffness(r["stiffness"], join(path, "stiffness"))
     if "inertia" in r:
         ipath = join(path, "inertia")
         m = table(r["inertia"], ipath)
@@ -488,7 +484,7 @@ def _parse_load(ld: dict, path: str, rods: dict[str, RodSpec], base_dir: Path) -
     kind = choice(require(ld, path, "kind"), join(path, "kind"),
                   ("force", "moment", "distributed_force"))
     where = () if kind == "distributed_force" else ("node", "s")
-    check_keys(ld, path, ("kind", "rod", *where, "vector", "frame", "profile"),
+    check_keys(ld, path, ("kind", "rod", *where, "vector", "frame", "profile", "offset"),
                required=("rod", "vector"))
     rod = _rod_of(ld, path, rods)
     place = {"node": None} if kind == "distributed_force" else _load_place(ld, path, rod)
@@ -499,8 +495,9 @@ def _parse_load(ld: dict, path: str, rods: dict[str, RodSpec], base_dir: Path) -
     if profile.kind == "table" and "file" in ld.get("profile", {}):
         ld["profile"] = {"kind": "table", "t": profile.t.tolist(),
                          "scale": profile.scale.tolist()}  # keep raw self-contained
+    offset = parse_offset(ld, path, kind, frame, profile.kind, place.get("element") is not None)
     return LoadSpec(kind=kind, rod=rod.name, vector=readonly(vec), frame=frame,
-                    profile=profile, **place)
+                    profile=profile, offset=readonly(offset), **place)
 
 
 def _parse_profile(value: Any, path: str, base_dir: Path) -> ProfileSpec:

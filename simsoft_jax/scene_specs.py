@@ -117,6 +117,17 @@ class LoadSpec(SpecBase):
     profile: ProfileSpec
     element: int | None = None        # a load by s between two nodes: its element in the rod
     xi: float | None = None           # and its place there, (s - s_A)/L_e in (0, 1)
+    offset: np.ndarray | None = None  # (3,) point of action, section frame (forces at nodes)
+
+
+@dataclass(frozen=True, eq=False)
+class MassSpec(SpecBase):
+    """A rigid mass attached to a rod node (``[[masses]]``)."""
+    rod: str
+    node: int                         # non-negative
+    mass: float                       # kg
+    offset: np.ndarray                # (3,) centre of mass, section frame, m
+    inertia: np.ndarray               # (3, 3) about the centre, section frame, kg m^2
 
 
 @dataclass(frozen=True, eq=False)

@@ -190,3 +190,81 @@ def custom_inertia(rhoA: float, rhoJ: float, rhoIy: float, rhoIz: float) -> np.n
     rotary = [check_number(key, value, ">= 0", lambda x: x >= 0)
               for key, value in (("rhoJ", rhoJ), ("rhoIy", rhoIy), ("rhoIz", rhoIz))]
     return np.array([rho_a, rho_a, rho_a, *rotary])
+
+
+STRAIN_NAMES = ("eps_x", "gamma_y", "gamma_z", "kappa_x", "kappa_y", "kappa_z")
+
+
+def stiffness_matrix(matrix, rtol: float = 1e-9) -> np.ndarray:
+    """Validated full section stiffness (6,6) with couplings.
+
+    Rows and columns follow the strains ``[eps_x, gamma_y, gamma_z, kappa_x, kappa_y,
+    kappa_z]`` (extension, the two shears, twist, bending about local y, bending about
+    local z), so ``[N; M] = K eps`` with units N (linear block), N m (couplings between
+    forces and curvatures) and N m^2 (angular block). ``K`` must be symmetric (to
+    ``rtol`` relative to its largest entry; the mean of ``K`` and ``K^T`` is kept) and
+    positive definite (a Cholesky factorization exists), else one ``ValueError`` naming
+    ``matrix``; the diagonal is the uncoupled ``[EA, GAy, GAz, GJ, EIy, EIz]``.
+    """
+    K = np.array(matrix, dtype=float)
+    if K.shape != (6, 6):
+        raise ValueError(f"matrix: must be 6x6, got shape {K.shape}")
+    if not np.all(np.isfinite(K)):
+        raise ValueError("matrix: entries must be finite")
+    scale = np.abs(K).max()
+    asym = np.abs(K - K.T).max()
+    if asym > rtol * scale:
+        i, j = np.unravel_index(np.argmax(np.abs(K - K.T)), K.shape)
+        raise ValueError(f"matrix: must be symmetric; entry [{i}][{j}] = {K[i, j]:g} but "
+                         f"[{j}][{i}] = {K[j, i]:g}")
+    K = 0.5 * (K + K.T)
+    try:
+        np.linalg.cholesky(K)
+    except np.linalg.LinAlgError:
+        low = float(np.linalg.eigvalsh(K).min())
+        raise ValueError(f"matrix: must be positive definite (a stored energy "
+                         f"1/2 eps^T K eps > 0 for every strain); smallest eigenvalue "
+                         f"{low:.4g}") from None
+    return K
+
+
+def coupled_stiffness(diagonal, couplings=None) -> np.ndarray:
+    """(6,6) stiffness from the diagonal ``[EA, GAy, GAz, GJ, EIy, EIz]`` and couplings
+    ``{(i, j): value}`` (strain indices 0..5 in :data:`STRAIN_NAMES` order, or their
+    names, e.g. ``{("kappa_x", "kappa_y"): -0.102}`` for bending-twist coupling, N m^2);
+    each coupling is written at ``[i][j]`` and ``[j][i]``. Validated by
+    :func:`stiffness_matrix`."""
+    K = np.diag(np.asarray(diagonal, dtype=float))
+    for (i, j), value in (couplings or {}).items():
+        i = STRAIN_NAMES.index(i) if isinstance(i, str) else int(i)
+        j = STRAIN_NAMES.index(j) if isinstance(j, str) else int(j)
+        if i == j:
+            raise ValueError(f"couplings: ({i}, {j}) is a diagonal entry, not a coupling")
+        K[i, j] = K[j, i] = float(value)
+    return stiffness_matrix(K)
+
+
+def beam4_stiffness(K4, shear=(1e3, 1e3), signs=(1.0, 1.0, 1.0, 1.0)) -> np.ndarray:
+    """(6,6) stiffness from the 4x4 beam stiffness of strain-based aeroelastic beam codes.
+
+    ``K4`` (4,4) symmetric, strains ``[extension, twist, out-of-plane (flap) bending,
+    in-plane (edgewise) bending]`` (e.g. UM/NAST of Su & Cesnik, Pazy wing data:
+    K11 N, K22 GJ, K33 flap EI, K44 edge EI, N m^2, couplings K12..K34). Axis convention
+    used here: the rod's local x along the beam reference axis, local y along the chord
+    (in-plane), local z normal to the wing plane; flap bending turns the section about
+    local y (``kappa_y``, the tip moves along z) and edgewise bending about local z
+    (``kappa_z``). The 4 strains go to ``[eps_x, kappa_x, kappa_y, kappa_z]`` with the
+    optional ``signs`` (+-1 per source strain) when the source's axes point the other way
+    (a coupling ``K_ij`` changes sign with ``signs[i] signs[j]``). Shear-rigid sources give
+    no shear stiffness: ``shear = (GAy, GAz)`` (N) sets it, large enough that shear
+    strains stay negligible (checked positive definite).
+    """
+    K4 = np.asarray(K4, dtype=float)
+    if K4.shape != (4, 4):
+        raise ValueError(f"K4: must be 4x4, got shape {K4.shape}")
+    s = np.asarray(signs, dtype=float)
+    K = np.zeros((6, 6))
+    rows = np.array([0, 3, 4, 5])
+    K[np.ix_(rows, rows)] = K4 * np.outer(s, s)
+    K[1, 1], K[2, 2] = (check_number("shear[0]", shear[0]), check_number("shear[1]", shear[1]))
+    return stiffness_matrix(K)

@@ -151,6 +151,16 @@ def load_scale(model: Model):
     if s.has_distributed_local:
         q = q + jnp.abs(model.distributed_local)
     total = total + jnp.sum((model.length[:, None] * q) ** 2)
+    if s.offset_load_nodes:        # forces at offset points and their moments
+        f = model.offset_force
+        total = total + jnp.sum(f ** 2) + jnp.sum(
+            (jnp.linalg.norm(model.offset_point, axis=1) * jnp.linalg.norm(f, axis=1)
+             / model.char_length) ** 2)
+    if s.mass_nodes and s.has_gravity:   # weights of attached masses
+        w = model.mass[:, None] * model.gravity
+        total = total + jnp.sum(w ** 2) + jnp.sum(
+            (jnp.linalg.norm(model.mass_offset, axis=1) * jnp.linalg.norm(w, axis=1)
+             / model.char_length) ** 2)
     return jnp.sqrt(total)
 
 

@@ -23,6 +23,7 @@ from .. import element, inertia, lie
 from ..assembly import (_nodal_load, apply_constraints, assemble_blocks, assemble_vector,
                         dead_distributed_force, element_data, element_force_and_tangent,
                         element_poses, follower_distributed_load, nodal_load_and_tangent,
+                        attachments_and_tangents,
                         point_load_and_tangent)
 from ..drives import reduce, slide_maps
 from ..loads import loads_at
@@ -73,6 +74,9 @@ def dynamic_residual(model: Model, inert: ElementInertia, R, p, v, vd, masked=Tr
     r = assemble_vector(s.n_nodes, s.element_nodes, f)
     if s.has_nodal_dead or s.has_nodal_follower:
         r = r + jax.vmap(_nodal_load(model, 1.0))(R, model.nodal_dead, model.nodal_follower)
+    attached = attachments_and_tangents(model, 1.0, R, v, vd, dynamic=True)
+    if attached is not None:
+        r = r + attached[0]
     return r * s.free_mask() if masked else r
 
 
@@ -93,7 +97,8 @@ def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p,
         # K_t: closed-form stress and load tangents (spec S42, S44), in the chart of S37;
         # C_t: gyroscopic (jacfwd in the 12 velocities) and viscous P^T Ups P / L (S42)
         P = element.strain_map(d)
-        stress, stress_jac = stiffness * (d - d0) / length, jnp.diag(stiffness / length)
+        stress = element.section_stress(stiffness, (d - d0) / length)
+        stress_jac = element.section_stress_jacobian(stiffness, length)
         gyro = lambda u: inertia.gyroscopic_force(  # noqa: E731
             maps, length, inert, u, s.inertia_kind, mass)
         C, g = jax.jacfwd(lambda u: (gyro(u),) * 2, has_aux=True)(ve)
@@ -127,6 +132,11 @@ def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p,
         f_n, k_n = nodal_load_and_tangent(model, 1.0, R, tangent)
         r = r + f_n
         diag = diag + k_n @ T
+    attached = attachments_and_tangents(model, 1.0, R, v, vd, dynamic=True)
+    if attached is not None:   # masses and offset loads: jacfwd on both paths
+        f_m, K_m, C_m, M_m = attached
+        r = r + f_m
+        diag = diag + M_m * beta_p + C_m * gamma_p + K_m @ T
     if slide is not None:
         C, B, mask = slide
         r, blocks = reduce(C, B, r, (diag, upper, lower))

@@ -16,12 +16,13 @@ import numpy as np
 
 from .. import element
 from .._xla import jit
-from ..assembly import apply_constraints, assemble_blocks
+from ..assembly import apply_constraints, assemble_blocks, attachments_and_tangents
 from ..linalg import block_solve
 from ..drives import reduce, slide_maps
 from ..loads import loads_at
 from ..model import Model
 from ..statics import as_traced
+from ..terms.masses import spatial_inertia
 from ..status import Status, describe, poison_gradient, raise_if_failed
 from .memory import empty_newton_memory
 from .newton import advance, attempt
@@ -68,6 +69,9 @@ def initial_state(model: Model, t0=0.0) -> State:
                          masked=False)
     s = model.structure
     blocks = assemble_blocks(s.n_nodes, s.element_nodes, inert.masses)
+    attached = attachments_and_tangents(model, 1.0, model.R0, model.v0, zeros, dynamic=True)
+    if attached is not None:   # attached masses' spatial inertia at their nodes
+        blocks = (blocks[0] + attached[3],) + tuple(blocks[1:])
     if s.slide_drives:  # a sliding node accelerates along its direction (w = 0: B = C^T)
         C, B, mask = slide_maps(model, model.R0, zeros)
         g, blocks = apply_constraints(mask, *reduce(C, B, g, blocks))
@@ -187,11 +191,16 @@ def _simulate(model: Model, settings: DynamicSettings, state: State | None,
 
 
 def energy(model: Model, R, p, v):
-    """Kinetic ``1/2 sum v_e^T M_e v_e`` plus strain energy ``sum (L/2) eps^T K eps`` (J)."""
+    """Kinetic ``1/2 sum v_e^T M_e v_e`` (plus ``1/2 V^T M6 V`` of attached masses,
+    :mod:`~simsoft_jax.terms.masses`) plus strain energy ``sum (L/2) eps^T K eps`` (J)."""
     a = jnp.asarray(model.structure.element_nodes)
     ve = jnp.concatenate([v[a], v[a + 1]], axis=1)
     kinetic = 0.5 * jnp.einsum("ei,eij,ej->", ve, element_inertia(model).masses, ve)
+    if model.structure.mass_nodes:
+        V = v[jnp.asarray(model.structure.mass_nodes)]
+        M6 = jax.vmap(spatial_inertia)(model.mass, model.mass_offset, model.mass_inertia)
+        kinetic = kinetic + 0.5 * jnp.einsum("ki,kij,kj->", V, M6, V)
     d = jax.vmap(element.relative_twist)(R[a], p[a], R[a + 1], p[a + 1])
-    eps = (d - model.d0) / model.length[:, None]
-    strain = 0.5 * jnp.sum(model.length[:, None] * model.stiffness * eps * eps)
+    strain = jnp.sum(jax.vmap(element.strain_energy)(d, model.d0, model.length,
+                                                     model.stiffness))
     return kinetic + strain
