@@ -74,6 +74,20 @@ def read_rows(path) -> list[tuple[int, str, str, int, list]]:
     return rows
 
 
+def _static_scenes_by_name(scenes: Sequence, purpose: str) -> dict:
+    """``{name: scene}`` of validated static scenes; a dynamic scene or a repeated name is
+    a ``ValueError`` naming it (``purpose`` says what needs static scenes)."""
+    by_name = {}
+    for scene in scenes:
+        if scene.solver.kind != "static":
+            raise ValueError(f"scenes: {scene.name!r} is a {scene.solver.kind} scene; "
+                             f"{purpose} needs static scenes")
+        if scene.name in by_name:
+            raise ValueError(f"scenes: two scenes are named {scene.name!r}; names must be unique")
+        by_name[scene.name] = scene
+    return by_name
+
+
 def static_targets(path, scenes: Sequence) -> list[StaticTarget]:
     """One :class:`~simsoft_jax.calibration.StaticTarget` per scene that has measurements.
 
@@ -81,14 +95,7 @@ def static_targets(path, scenes: Sequence) -> list[StaticTarget]:
     Raises ``ValueError`` for rows naming unknown scenes, rods or nodes.
     """
     path = Path(path)
-    by_name = {}
-    for scene in scenes:
-        if scene.solver.kind != "static":
-            raise ValueError(f"scenes: {scene.name!r} is a {scene.solver.kind} scene; "
-                             f"calibration from positions needs static scenes")
-        if scene.name in by_name:
-            raise ValueError(f"scenes: two scenes are named {scene.name!r}; names must be unique")
-        by_name[scene.name] = scene
+    by_name = _static_scenes_by_name(scenes, "calibration from positions")
     models = {}
     collected: dict = {}
     for line, scene_name, rod, node, xyz in read_rows(path):
@@ -248,14 +255,7 @@ def observation_set(path, scenes: Sequence) -> ObservationSet:
     """Resolve the rows of ``path`` (:func:`read_observations`) against validated static
     ``scenes`` (unique names); errors name the file, line and column."""
     path = Path(path)
-    by_name = {}
-    for scene in scenes:
-        if scene.solver.kind != "static":
-            raise ValueError(f"scenes: {scene.name!r} is a {scene.solver.kind} scene; "
-                             f"calibration needs static scenes")
-        if scene.name in by_name:
-            raise ValueError(f"scenes: two scenes are named {scene.name!r}; names must be unique")
-        by_name[scene.name] = scene
+    by_name = _static_scenes_by_name(scenes, "calibration")
     names, models, index = [], [], {}
 
     def model_of(name, line, column):
