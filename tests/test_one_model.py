@@ -21,15 +21,16 @@ ROD = {"name": "arm", "elements": 4, "geometry": {"kind": "arc", "radius": 1.5, 
 
 
 def dynamic_scene(**changes):
-    """A curved rod with every kind of load and time law, viscosity, an initial velocity
-    and a driven base (a rotation table). No time-law sample falls on a step time (the
+    """A curved rod with every kind of load and time law, viscosity and mass-proportional
+    damping, an attached mass at an offset, an initial velocity and a driven base (a rotation table). No time-law sample falls on a step time (the
     laws are piecewise linear: a kink on a step would make finite differences in the
     sample times one-sided)."""
     rod = dict(ROD, **changes.pop("rod", {}))
     scene = {
         "solver": {"kind": "dynamic", "t_end": 0.5, "dt": 0.01, "rho_inf": 0.8},
         "gravity": {"vector": [0.0, 0.0, -9.81]},
-        "materials": [{"name": "m", "E": 1e6, "nu": 0.3, "density": 1e3, "viscosity": 50.0}],
+        "materials": [{"name": "m", "E": 1e6, "nu": 0.3, "density": 1e3, "viscosity": 50.0,
+                       "mass_damping": 0.5}],
         "rods": [dict(rod, material="m", section={"shape": "circle", "diameter": 0.05})],
         "constraints": [{"kind": "drive", "rod": "arm", "node": 0, "times": [0.002, 0.505],
                          "displacement": [[0, 0, 0], [0.0, 0.01, 0.0]],
@@ -45,6 +46,8 @@ def dynamic_scene(**changes):
              "frame": "local", "profile": {"kind": "table", "t": [0.002, 0.205, 0.505],
                                            "scale": [0.0, 1.0, 0.5]}}],
         "initial_velocity": [{"rod": "arm", "linear": [0, 0, 0], "angular": [0.0, 0.3, 0.2]}],
+        "masses": [{"rod": "arm", "node": -1, "mass": 0.05, "offset": [0.0, 0.02, 0.01],
+                    "inertia": [[2e-5, 0, 0], [0, 1e-5, 0], [0, 0, 1.5e-5]]}],
     }
     scene.update(changes)
     return scene
@@ -182,7 +185,8 @@ def test_rollout_gradient_over_every_model_leaf():
     assert {"R0", "p0", "v0", "stiffness", "d0", "length", "inertia", "viscosity", "gravity",
             "nodal_dead", "nodal_follower", "distributed_world", "channels.params",
             "channels.table_scale", "channels.nodal_dead", "channels.distributed_local",
-            "drive_rotation", "drive_displacement"} <= set(moved), moved
+            "drive_rotation", "drive_displacement", "mass_damping", "mass", "mass_offset",
+            "mass_inertia"} <= set(moved), moved
 
 
 class _CompileCounter(logging.Handler):
