@@ -33,44 +33,54 @@ def _fail(path: Path, line: int, column: str, message: str):
     raise ValueError(f"measurements: {path.name} line {line}, column {column}: {message}")
 
 
-def read_rows(path) -> list[tuple[int, str, str, int, list]]:
-    """Parsed rows ``(line, scene, rod, node, [x, y, z] with None for empty)``."""
-    path = Path(path)
+def _records(path: Path, columns, required, need: str):
+    """``(line, row, node)`` for every data row of the CSV ``path``: the file exists, has
+    ``columns`` (``need`` lists them in the error), every row fills the ``required``
+    columns and its node is an integer; a file without data rows is an error."""
     if not path.is_file():
         raise ValueError(f"measurements: no such file {str(path)!r}")
     with path.open(newline="") as handle:
         reader = csv.DictReader(handle)
-        missing = [c for c in COLUMNS if c not in (reader.fieldnames or [])]
+        missing = [c for c in columns if c not in (reader.fieldnames or [])]
         if missing:
-            raise ValueError(f"measurements: {path.name} lacks column(s) {missing} "
-                             f"(need {list(COLUMNS)})")
-        rows = []
+            raise ValueError(f"measurements: {path.name} lacks column(s) {missing} ({need})")
+        count = 0
         for line, row in enumerate(reader, start=2):
-            for key in ("scene", "rod", "node"):
+            for key in required:
                 if not (row[key] or "").strip():
                     _fail(path, line, key, "empty")
             try:
                 node = int(row["node"])
             except ValueError:
                 _fail(path, line, "node", f"not an integer: {row['node']!r}")
-            xyz = []
-            for key in "xyz":
-                text = (row[key] or "").strip()
-                if not text:
-                    xyz.append(None)
-                    continue
-                try:
-                    value = float(text)
-                except ValueError:
-                    _fail(path, line, key, f"not a number: {text!r}")
-                if not np.isfinite(value):
-                    _fail(path, line, key, "not finite")
-                xyz.append(value)
-            if all(v is None for v in xyz):
-                _fail(path, line, "x,y,z", "no component measured")
-            rows.append((line, row["scene"].strip(), row["rod"].strip(), node, xyz))
-    if not rows:
+            count += 1
+            yield line, row, node
+    if not count:
         raise ValueError(f"measurements: {path.name} has no data rows")
+
+
+def read_rows(path) -> list[tuple[int, str, str, int, list]]:
+    """Parsed rows ``(line, scene, rod, node, [x, y, z] with None for empty)``."""
+    path = Path(path)
+    rows = []
+    for line, row, node in _records(path, COLUMNS, ("scene", "rod", "node"),
+                                    f"need {list(COLUMNS)}"):
+        xyz = []
+        for key in "xyz":
+            text = (row[key] or "").strip()
+            if not text:
+                xyz.append(None)
+                continue
+            try:
+                value = float(text)
+            except ValueError:
+                _fail(path, line, key, f"not a number: {text!r}")
+            if not np.isfinite(value):
+                _fail(path, line, key, "not finite")
+            xyz.append(value)
+        if all(v is None for v in xyz):
+            _fail(path, line, "x,y,z", "no component measured")
+        rows.append((line, row["scene"].strip(), row["rod"].strip(), node, xyz))
     return rows
 
 
@@ -189,36 +199,21 @@ def read_observations(path) -> list[Observation]:
     Every error names the file, the line and the column.
     """
     path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"measurements: no such file {str(path)!r}")
-    with path.open(newline="") as handle:
-        reader = csv.DictReader(handle)
-        missing = [c for c in OBSERVATION_COLUMNS if c not in (reader.fieldnames or [])]
-        if missing:
-            raise ValueError(f"measurements: {path.name} lacks column(s) {missing} "
-                             f"(need {list(OBSERVATION_COLUMNS)}, optional "
-                             f"{list(OPTIONAL_COLUMNS)})")
-        rows = []
-        for line, row in enumerate(reader, start=2):
-            for key in ("scene", "rod", "node", "quantity"):
-                if not (row[key] or "").strip():
-                    _fail(path, line, key, "empty")
-            try:
-                node = int(row["node"])
-            except ValueError:
-                _fail(path, line, "node", f"not an integer: {row['node']!r}")
-            quantity = row["quantity"].strip()
-            if quantity not in QUANTITIES:
-                _fail(path, line, "quantity", f"unknown quantity {quantity!r} (choose from "
-                      f"{', '.join(QUANTITIES)})")
-            offset = tuple(_number(path, line, row, f"offset_{a}", 0.0) for a in "xyz")
-            reference = (row.get("reference") or "").strip() or None
-            rows.append(Observation(line, row["scene"].strip(), row["rod"].strip(), node,
-                                    offset, quantity, _number(path, line, row, "value"),
-                                    _number(path, line, row, "std", 1.0, positive=True),
-                                    reference))
-    if not rows:
-        raise ValueError(f"measurements: {path.name} has no data rows")
+    rows = []
+    for line, row, node in _records(path, OBSERVATION_COLUMNS,
+                                    ("scene", "rod", "node", "quantity"),
+                                    f"need {list(OBSERVATION_COLUMNS)}, optional "
+                                    f"{list(OPTIONAL_COLUMNS)}"):
+        quantity = row["quantity"].strip()
+        if quantity not in QUANTITIES:
+            _fail(path, line, "quantity", f"unknown quantity {quantity!r} (choose from "
+                  f"{', '.join(QUANTITIES)})")
+        offset = tuple(_number(path, line, row, f"offset_{a}", 0.0) for a in "xyz")
+        reference = (row.get("reference") or "").strip() or None
+        rows.append(Observation(line, row["scene"].strip(), row["rod"].strip(), node,
+                                offset, quantity, _number(path, line, row, "value"),
+                                _number(path, line, row, "std", 1.0, positive=True),
+                                reference))
     return rows
 
 
