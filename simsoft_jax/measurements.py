@@ -98,6 +98,21 @@ def _static_scenes_by_name(scenes: Sequence, purpose: str) -> dict:
     return by_name
 
 
+def _global_node(path: Path, line: int, structure, scene_name: str, rod: str, node: int,
+                 rod_label: str) -> int:
+    """The model-wide index of ``node`` (negative: from the rod's end) of ``rod`` in a
+    model ``structure``; an unknown rod or a node out of range fails naming the file and
+    line (``rod_label`` names the rod in the node error)."""
+    rods = [r.name for r in structure.rods]
+    if rod not in rods:
+        _fail(path, line, "rod", f"scene {scene_name!r} has no rod {rod!r} (rods: {rods})")
+    info = structure.rod(rod)
+    if not -info.nodes <= node < info.nodes:
+        _fail(path, line, "node", f"{rod_label} has nodes 0..{info.nodes - 1} "
+              f"(or -{info.nodes}..-1), got {node}")
+    return info.first_node + node % info.nodes
+
+
 def static_targets(path, scenes: Sequence) -> list[StaticTarget]:
     """One :class:`~simsoft_jax.calibration.StaticTarget` per scene that has measurements.
 
@@ -113,15 +128,8 @@ def static_targets(path, scenes: Sequence) -> list[StaticTarget]:
             _fail(path, line, "scene", f"unknown scene {scene_name!r} (given: {sorted(by_name)})")
         if scene_name not in models:
             models[scene_name] = build_model(by_name[scene_name])
-        structure = models[scene_name].structure
-        rods = [r.name for r in structure.rods]
-        if rod not in rods:
-            _fail(path, line, "rod", f"scene {scene_name!r} has no rod {rod!r} (rods: {rods})")
-        info = structure.rod(rod)
-        if not -info.nodes <= node < info.nodes:
-            _fail(path, line, "node", f"rod {rod!r} has nodes 0..{info.nodes - 1} "
-                  f"(or -{info.nodes}..-1), got {node}")
-        global_node = info.first_node + node % info.nodes
+        global_node = _global_node(path, line, models[scene_name].structure, scene_name,
+                                   rod, node, f"rod {rod!r}")
         collected.setdefault(scene_name, []).append((global_node, xyz))
     targets = []
     for name, rows in collected.items():
@@ -263,15 +271,8 @@ def observation_set(path, scenes: Sequence) -> ObservationSet:
         return index[name]
 
     def node_of(m, name, rod, node, line):
-        structure = models[m].structure
-        rods = [r.name for r in structure.rods]
-        if rod not in rods:
-            _fail(path, line, "rod", f"scene {name!r} has no rod {rod!r} (rods: {rods})")
-        info = structure.rod(rod)
-        if not -info.nodes <= node < info.nodes:
-            _fail(path, line, "node", f"rod {rod!r} of scene {name!r} has nodes "
-                  f"0..{info.nodes - 1} (or -{info.nodes}..-1), got {node}")
-        return info.first_node + node % info.nodes
+        return _global_node(path, line, models[m].structure, name, rod, node,
+                            f"rod {rod!r} of scene {name!r}")
 
     rows = read_observations(path)
     cols = {k: [] for k in ("model", "node", "ref_model", "ref_node", "kind", "component")}
