@@ -3,9 +3,9 @@ that used to hang (a length of 1e300, a load of 1e300 N, gravity of 1e200 m/s^2)
 at load level 0 with a status and a message, and their result files are strict JSON; a
 length of 1e-300 m is rejected (its elements have no representable length)."""
 import json
-import time
 import warnings
 
+import numpy as np
 import pytest
 
 import simsoft_jax as sj
@@ -26,12 +26,15 @@ def strict(text):
 def test_overflowing_scenes_end_with_a_reason(change, tmp_path):
     d = scene_dict()
     change(d)
-    start = time.perf_counter()
     with warnings.catch_warnings():      # NumPy overflow warnings while building the model
         warnings.simplefilter("ignore", RuntimeWarning)
         r = sj.run(d)
-    assert time.perf_counter() - start < 60.0
     assert not r.converged and r.load_level == 0.0
+    # it ends by the step-halving rule, not by a long search: no step is ever accepted
+    # and the halvings from 1/load_steps down to min_step_fraction are all it tries
+    settings = sj.StaticSettings()
+    assert int(r.raw.load_steps) == 0
+    assert int(r.raw.step_failures) <= 1 - np.log2(settings.min_step_fraction)
     assert r.status in ("step_too_small", "max_attempts", "nonfinite")
     assert r.message.startswith("static solve failed at load level 0:")
     data = strict(r.save(tmp_path / "r.json").read_text())
