@@ -63,17 +63,17 @@ def flat_continuation(model: Model, settings: StaticSettings) -> Equilibrium:
     ref = load_scale(model)
 
     def body(f: _FlatState) -> _FlatState:
-        lam_try, Rs, ps = trial_level(f.cont)
+        lam_try, Rs, ps, ys = trial_level(f.cont)
         lam = jnp.where(f.starting, lam_try, f.lam_try)
         newton = newton_pass(model, settings, lam, ref,
-                             select(f.starting, newton_start(Rs, ps), f.newton))
+                             select(f.starting, newton_start(Rs, ps, ys), f.newton))
         ended = newton.status != _RUNNING
         cont = select(ended, after_newton(settings, f.cont, lam, *newton_outcome(newton)),
                       f.cont)
         return _FlatState(cont, newton, lam, ended, ~continuing(settings, cont))
 
     cont = continuation_start(model, settings)
-    init = _FlatState(cont, newton_start(model.R0, model.p0), jnp.array(0.0),
+    init = _FlatState(cont, newton_start(model.R0, model.p0, cont.y), jnp.array(0.0),
                       jnp.array(True), ~continuing(settings, cont))
     f = jax.lax.while_loop(lambda f: ~f.done, body, init)
     return continuation_result(settings, f.cont)

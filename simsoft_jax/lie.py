@@ -299,3 +299,14 @@ def compose_exp(R, p, xi):
     """``(R, p) @ exp_se3(xi)`` returned as ``(R', p')`` (right/body update, spec S54, S71)."""
     E = exp_se3(xi)
     return R @ E[:3, :3], p + R @ E[:3, 3]
+
+
+def compose_exp_quadratic(R, p, xi):
+    """``(R, p) @ exp_se3(xi)`` to second order in ``xi = [u; w]``:
+    ``(R (I + W + W^2/2), p + R (u + w x u / 2))`` (the series of seed eq. 123 cut after
+    the quadratic terms). Its value, first and second derivatives at ``xi = 0`` equal
+    those of :func:`compose_exp`, at a fraction of the cost of differentiating the full
+    exponential twice: for Hessians at the current iterate (joint Lagrangians)."""
+    W = skew(xi[3:])
+    eye = jnp.eye(3, dtype=R.dtype)
+    return R @ (eye + W + 0.5 * W @ W), p + R @ (xi[:3] + 0.5 * jnp.cross(xi[3:], xi[:3]))

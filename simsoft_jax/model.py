@@ -27,6 +27,8 @@ import numpy as np
 
 from . import geometry as geom
 from . import lie
+from .joint_layout import layout as joint_layout
+from .scene_mechanisms import jointed_rods
 from .loads import LoadChannels, build_channels
 from .sections import inertia_diagonal, stiffness_diagonal, viscosity_diagonal
 from .supports import AXES, unheld_message
@@ -63,6 +65,11 @@ class Structure:
     inertia_kind: str = "consistent"   # "consistent" | "lumped" element inertia
     drive_nodes: tuple = ()       # node index of each drive
     slide_drives: tuple = ()      # indices (into the drives) of the sliding ones
+    bodies: tuple = ()            # (name, node) of each [[bodies]] entry
+    body_nodes: tuple = ()        # nodes of the rigid bodies (after the rods' nodes)
+    coupling_nodes: tuple = ()    # nodes solved in the coupling set: the bodies, then
+                                  # rod nodes of joints (simsoft_jax.mechanisms)
+    joints: tuple = ()            # (kind, node a, node b) per joint ("weld" | "ball")
 
     @property
     def n_elements(self) -> int:
@@ -110,6 +117,10 @@ class Model:
     (:mod:`simsoft_jax.terms.masses`). offset_force (L,3) world (N), offset_point (L,3)
     section frame (m): dead forces at offset points of nodes
     ``structure.offset_load_nodes`` (:mod:`simsoft_jax.terms.offset_loads`).
+    joint_offset_a, joint_offset_b (J,3): the joint point in the frames of the joint's
+    nodes a and b (m); joint_rotation (J,3,3): the relative rotation ``R_a^T R_b`` a weld
+    keeps (:mod:`simsoft_jax.terms.joints`). Rigid bodies are nodes after the rods' nodes
+    (``structure.body_nodes``), their mass and inertia attached masses.
     """
     structure: Structure
     R0: jax.Array
@@ -140,6 +151,9 @@ class Model:
     mass_inertia: jax.Array
     offset_force: jax.Array
     offset_point: jax.Array
+    joint_offset_a: jax.Array
+    joint_offset_b: jax.Array
+    joint_rotation: jax.Array
 
     def replace(self, **changes) -> "Model":
         """A copy with some arrays replaced (same structure: no recompilation)."""
@@ -237,19 +251,26 @@ def _reference_twists(R, p):
     return np.asarray(_consecutive_twists(jnp.asarray(R), jnp.asarray(p)))
 
 
-def _check_held(scene, frames, rods):
+def _check_held(scene, frames, rods) -> set:
     """A static scene needs every rod held against rigid motion: the rigid motions its
     clamps, pins, hinges and drives leave free (:mod:`~simsoft_jax.supports`, at the
     start configuration ``frames = (R0, p0)``) must be none; else a ValueError says which
-    motion is free and how to restrain it."""
+    motion is free and how to restrain it. A rod with joints may be held through them:
+    the names of those its own supports do not hold are returned (a mechanism left free
+    fails the solve, with a status)."""
     R0, p0 = frames
+    jointed = jointed_rods(getattr(scene, "joints", ()))
+    held_by_joints = set()
     for i, rod in enumerate(scene.rods):
         held = [c for c in scene.constraints if c.rod == rod.name]
         first = rods[rod.name].first_node
         at = {c.node: (R0[first + c.node], p0[first + c.node]) for c in held}
         message = unheld_message(rod.name, i, held, at, rod.geometry.arc_length)
-        if message:
+        if message and rod.name in jointed:
+            held_by_joints.add(rod.name)
+        elif message:
             raise ValueError(message)
+    return held_by_joints
 
 
 def _initial_velocities(scene, rods, R0, p0):
@@ -321,11 +342,13 @@ def build_model(scene) -> Model:
         elem_nodes.extend(range(node_offset, node_offset + rod.elements))
         node_offset += rod.elements + 1
         element_offset += rod.elements
-    n_nodes, n_elements = node_offset, element_offset
     by_name = {r.name: r for r in rods}
     R0, p0 = np.concatenate(R0), np.concatenate(p0)
-    if scene.solver.kind == "static":
-        _check_held(scene, (R0, p0), by_name)
+    held_by_joints = (_check_held(scene, (R0, p0), by_name)
+                      if scene.solver.kind == "static" else set())
+    joints = joint_layout(scene, by_name, R0, p0, held_by_joints)
+    R0, p0 = np.concatenate([R0, joints.R]), np.concatenate([p0, joints.p])
+    n_nodes, n_elements = len(p0), element_offset
 
     free = np.ones((n_nodes, 6), bool)
     for c in scene.constraints:
@@ -365,7 +388,8 @@ def build_model(scene) -> Model:
     gravity = np.zeros(3) if scene.gravity is None else np.asarray(scene.gravity, float)
     V = np.concatenate(V)
     times, disp, rot, slide, drive_nodes, sliding = _drive_tables(scene, by_name)
-    masses = getattr(scene, "masses", ())
+    masses = tuple(dataclasses.replace(m, node=by_name[m.rod].first_node + m.node)
+                   for m in getattr(scene, "masses", ())) + joints.masses
     for load in loads:
         if load.element is not None:
             point_xi[by_name[load.rod].first_element + load.element] = load.xi
@@ -387,8 +411,10 @@ def build_model(scene) -> Model:
         has_mass_damping=bool(np.any(np.concatenate(C) != 0.0)),
         coupled_stiffness=coupled,
         inertia_kind=getattr(scene.solver, "inertia", "consistent"),
-        drive_nodes=drive_nodes, slide_drives=sliding,
-        mass_nodes=tuple(by_name[m.rod].first_node + m.node for m in masses),
+        drive_nodes=drive_nodes, slide_drives=sliding, bodies=joints.bodies,
+        body_nodes=joints.body_nodes, coupling_nodes=joints.coupling_nodes,
+        joints=joints.joints,
+        mass_nodes=tuple(m.node for m in masses),
         offset_load_nodes=tuple(by_name[ld.rod].first_node + ld.node for ld in offset_loads),
     )
     arrays = dict(
@@ -404,7 +430,9 @@ def build_model(scene) -> Model:
         mass_offset=np.reshape([m.offset for m in masses], (-1, 3)),
         mass_inertia=np.reshape([m.inertia for m in masses], (-1, 3, 3)),
         offset_force=np.reshape([ld.vector for ld in offset_loads], (-1, 3)),
-        offset_point=np.reshape([ld.offset for ld in offset_loads], (-1, 3)))
+        offset_point=np.reshape([ld.offset for ld in offset_loads], (-1, 3)),
+        joint_offset_a=joints.offset_a, joint_offset_b=joints.offset_b,
+        joint_rotation=joints.rotation)
     # one batched transfer (a device_put per array costs more than the arrays' numbers)
     arrays = jax.device_put({k: np.asarray(a, np.float64) for k, a in arrays.items()})
     return Model(structure=structure, channels=build_channels(timed, structure), **arrays)

@@ -131,6 +131,15 @@ class Result:
             raise ValueError("velocities: a static result has none (run a dynamic scene)")
         return np.asarray(self.raw.v)[:, self._nodes(rod)].copy()
 
+    def body_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Position (3,) (m, world) and rotation (3,3) (columns: the body axes in world
+        coordinates) of the rigid body ``name`` (``[[bodies]]``)."""
+        nodes = dict(self.model.structure.bodies)
+        if name not in nodes:
+            raise ValueError(f"body: no body named {name!r} (known: "
+                             f"{', '.join(nodes) or 'none'})")
+        return self._p[..., nodes[name], :].copy(), self._R[..., nodes[name], :, :].copy()
+
     def to_dict(self) -> dict:
         """The result-file layout of the scene-format contract (plain Python types);
         dynamic results add per-rod ``velocities`` (T, nodes, 6), as :meth:`velocities`.
@@ -147,6 +156,9 @@ class Result:
              "newton_iterations": self.newton_iterations,
              "residual_norm": self.residual_norm, "wall_time_s": self.wall_time_s,
              "compile_time_s": self.compile_time_s, "rods": rods}
+        if self.model.structure.bodies:
+            d["bodies"] = {name: dict(zip(("position", "rotation"), self.body_pose(name)))
+                           for name, _ in self.model.structure.bodies}
         if self.time is not None:
             d["time"] = self.time
         else:  # static: None when not checked (not converged, or skipped)
@@ -179,7 +191,11 @@ class Result:
             raise ValueError(f"output: unsupported suffix {path.suffix!r} (use .json or .npz)")
         d = self.to_dict()
         arrays = {k: np.asarray(v) for k, v in d.items()
-                  if k not in ("rods", "failed_at", "time", "stability") and v is not None}
+                  if k not in ("rods", "bodies", "failed_at", "time", "stability")
+                  and v is not None}
+        for name, pose in d.get("bodies", {}).items():
+            arrays[f"bodies/{name}/position"] = np.asarray(pose["position"])
+            arrays[f"bodies/{name}/rotation"] = np.asarray(pose["rotation"])
         if self.stability is not None:
             arrays["stability/negative_eigenvalues"] = self.stability["negative_eigenvalues"]
         if self.time is not None:

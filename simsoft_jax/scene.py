@@ -24,6 +24,7 @@ from ._validate import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, fa
                         toml_document, vector)
 from .materials import BUILTIN_MATERIALS, Material, get_material
 from .scene_attachments import parse_masses, parse_offset, parse_stiffness
+from .scene_mechanisms import check_mechanism, jointed_rods, parse_bodies, parse_joints
 from .scene_initial import parse_initial
 from .scene_limits import (MAX_ELEMENTS, MAX_STEPS, check_elements, check_loads_on_held_nodes,
                            check_point_loads_in_elements, warn_short_features)
@@ -50,6 +51,8 @@ class Scene(SpecBase):
     source: str | None = None
     raw: dict = dataclasses.field(default_factory=dict)
     masses: tuple = ()                # MassSpec per [[masses]] entry
+    bodies: tuple = ()                # BodySpec per [[bodies]] entry
+    joints: tuple = ()                # JointSpec per [[joints]] entry
 
     @classmethod
     def from_dict(cls, d: dict, base_dir: str | Path | None = None) -> "Scene":
@@ -76,7 +79,7 @@ class Scene(SpecBase):
 # ----------------------------------------------------------------------------- parsing
 
 _TOP_KEYS = ("name", "solver", "gravity", "materials", "rods", "constraints", "loads",
-             "initial_velocity", "masses")
+             "initial_velocity", "masses", "bodies", "joints")
 _SOLVER_KEYS = ("kind", "tolerance", "max_iterations", "load_steps", "t_end", "dt",
                 "rho_inf", "save_every", "inertia", "tangent", "max_steps")
 _MATERIAL_KEYS = ("name", "E", "G", "nu", "density", "viscosity", "mass_damping")
@@ -136,6 +139,9 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
                   for i, item in enumerate(_array_of_tables(raw, "loads")))
     velocities = _parse_velocities(_array_of_tables(raw, "initial_velocity"), rods)
     masses = parse_masses(_array_of_tables(raw, "masses"), rods, _node)
+    bodies = parse_bodies(_array_of_tables(raw, "bodies"), rods)
+    joints = parse_joints(_array_of_tables(raw, "joints"), rods, bodies, _node)
+    check_mechanism(solver.kind, bodies, joints)
     if solver.kind == "dynamic":
         warn_short_features(loads, constraints, solver.dt)
     check_loads_on_held_nodes(raw.get("loads", []), loads, constraints)
@@ -148,9 +154,12 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
                      "use a clamp at the driven pose (base or initial), or solver.kind = "
                      "\"dynamic\"")
     if solver.kind == "static":  # rigid-body motion left free makes statics singular
+        jointed = jointed_rods(joints)
         for i, rod in enumerate(rods.values()):
             if rod.initial_points is not None or rod.initial_rotations is not None:
                 continue   # checked where it starts, by model.build_model
+            if rod.name in jointed:
+                continue   # held through its joints: a free mechanism fails the solve
             held = [c for c in constraints if c.rod == rod.name]
             frames = stress_free_frames(rod, {c.node for c in held})
             message = unheld_message(rod.name, i, held, frames, rod.geometry.arc_length)
@@ -158,7 +167,7 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
                 raise ValueError(message)
     return Scene(name=name, solver=solver, gravity=gravity, rods=tuple(rods.values()),
                  constraints=constraints, loads=loads, initial_velocity=velocities,
-                 source=None, raw=raw, masses=masses)
+                 source=None, raw=raw, masses=masses, bodies=bodies, joints=joints)
 
 
 def _parse_solver(value: Any) -> SolverSettings:

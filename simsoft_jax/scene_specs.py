@@ -137,3 +137,32 @@ class InitialVelocitySpec(SpecBase):
     angular: np.ndarray               # (3,)
 
 
+
+
+@dataclass(frozen=True, eq=False)
+class BodySpec(SpecBase):
+    """A free rigid body (``[[bodies]]``), a 6-DOF node that rods attach to by joints."""
+    name: str
+    mass: float                       # kg (0: a massless connector)
+    inertia: np.ndarray               # (3, 3) about the body origin, body frame, kg m^2
+    position: np.ndarray              # (3,) world, m
+    rotation: np.ndarray              # (3, 3) body axes in world coordinates
+
+
+@dataclass(frozen=True, eq=False)
+class JointEnd(SpecBase):
+    """One side of a joint: a rod node (``rod``, ``node``) or a body (``body``), with an
+    ``offset`` (3,) of the joint point in that side's frame (m)."""
+    rod: str | None
+    node: int | None                  # non-negative, rods only
+    body: str | None
+    offset: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class JointSpec(SpecBase):
+    """A joint (``[[joints]]``): ``weld`` (full pose, the relative transform at the start
+    configuration kept) or ``ball`` (the two joint points coincide)."""
+    kind: str
+    a: JointEnd
+    b: JointEnd

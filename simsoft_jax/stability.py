@@ -11,13 +11,23 @@ rows and columns (:func:`~simsoft_jax.assembly.apply_constraints`) and contribut
 positive pivots, so the count is that of the constrained tangent. Zero means a stable
 (local energy minimum) equilibrium; ``n > 0`` an unstable one (buckled past n/2 or n
 critical loads, depending on multiplicity).
+
+With bodies and joints the tangent is the bordered matrix ``[[K, B], [C, D]]`` of
+:mod:`simsoft_jax.mechanisms`; its inertia is that of the chains plus that of the Schur
+complement ``S = D - C K^-1 B`` (Haynsworth), and a saddle-point matrix with M
+independent constraints has M negative eigenvalues more than the tangent restricted to
+the constraints (Gould 1985, "On practical conditions for the existence and uniqueness
+of solutions to the general equality quadratic programming problem"): the count
+reported is that of the restricted tangent.
 """
 from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
 
+from . import mechanisms
 from .assembly import residual_and_tangent
+from .linalg import factorize, solve_factored
 from .loads import full_loads
 from .model import Model
 
@@ -49,5 +59,16 @@ def negative_eigenvalues(model: Model, eq) -> jax.Array:
     constrained tangent at the equilibrium ``eq`` (:class:`~simsoft_jax.statics.Equilibrium`
     or anything with frames ``R`` (N,3,3) and positions ``p`` (N,3), m) of ``model`` under
     its full loads. Pure: jit- and vmap-able."""
-    _, blocks = residual_and_tangent(full_loads(model), eq.R, eq.p, 1.0)
-    return count_negative_pivots(*symmetric_blocks(blocks))
+    loaded = full_loads(model)
+    r, blocks = residual_and_tangent(loaded, eq.R, eq.p, 1.0)
+    if not model.structure.joints:
+        return count_negative_pivots(*symmetric_blocks(blocks))
+    system = mechanisms.couple(loaded, eq.R, eq.p, eq.multipliers, r, blocks)
+    diag, lower = symmetric_blocks(system.blocks)
+    B = 0.5 * (system.B + jnp.transpose(system.C, (1, 2, 0)))
+    chain = factorize((diag, jnp.swapaxes(lower, -1, -2), lower))
+    schur = 0.5 * (system.D + system.D.T) - jnp.einsum("nja,njb->ab", B,
+                                                        solve_factored(chain, B))
+    schur = 0.5 * (schur + schur.T)
+    return (count_negative_pivots(diag, lower) + jnp.sum(jnp.linalg.eigvalsh(schur) < 0.0)
+            - mechanisms.multiplier_count(model.structure))

@@ -19,10 +19,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import lie
+from . import lie, mechanisms
 from ._xla import jit
 from .assembly import check_tangent, residual, residual_and_tangent
-from .linalg import block_solve, implicit_solve
+from .linalg import (block_solve, factorize_coupled, implicit_solve, implicit_solve_coupled,
+                     solve_coupled)
 from .loads import full_loads
 from .model import Model
 from .status import Status, describe, raise_if_failed
@@ -94,7 +95,8 @@ class Equilibrium(NamedTuple):
     (weighted, N; at the last accepted load level), load_level (fraction of the loads
     reached, 1 when converged), load_steps (accepted continuation steps), step_failures
     (halvings), status (:class:`~simsoft_jax.status.Status` code: how the solve ended),
-    cause (the reason of the last failed Newton solve, ``NOT_RUN`` if none)."""
+    cause (the reason of the last failed Newton solve, ``NOT_RUN`` if none), multipliers
+    (M,): the joint multipliers (:mod:`~simsoft_jax.mechanisms`; empty without joints)."""
     R: jax.Array
     p: jax.Array
     converged: jax.Array
@@ -105,6 +107,7 @@ class Equilibrium(NamedTuple):
     step_failures: jax.Array
     status: jax.Array
     cause: jax.Array
+    multipliers: jax.Array
 
     def message(self) -> str:
         """How the solve ended, in words (concrete, unbatched results)."""
@@ -173,12 +176,16 @@ class _NewtonState(NamedTuple):
     the Newton step from the base (dx), the fraction of it tried (step), the size of that
     step (size_base) and the residual at the base (res_base), the residual at the last
     evaluated trial (res), rejected trials in a row (backtracks), accepted Newton steps
-    (iterations), and the status: -1 running, else a :class:`Status` code."""
+    (iterations), and the status: -1 running, else a :class:`Status` code. y, base_y,
+    dy: the joint multipliers like R, p and dx (empty without joints)."""
     R: jax.Array
     p: jax.Array
     base_R: jax.Array
     base_p: jax.Array
     dx: jax.Array
+    y: jax.Array
+    base_y: jax.Array
+    dy: jax.Array
     step: jax.Array
     size_base: jax.Array
     res: jax.Array
@@ -196,10 +203,13 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: _NewtonStat
     tangent and Newton step at the trial state, then accept or backtrack (see there)."""
     tol = settings.tolerance * ref
     r, blocks = residual_and_tangent(model, c.R, c.p, lam, settings.tangent)
-    res = weighted_norm(model, r)
-    dx = -block_solve(blocks, r)
+    if model.structure.joints:    # rods, bodies and joints: the bordered system
+        res, dx, dy = _mechanism_step(model, ref, c.R, c.p, c.y, r, blocks)
+    else:
+        res, dx, dy = weighted_norm(model, r), -block_solve(blocks, r), c.dy
     rot = jnp.max(jnp.linalg.norm(dx[:, 3:], axis=1))
-    dx = dx * jnp.minimum(1.0, settings.max_rotation_step / jnp.maximum(rot, 1e-300))
+    cap = jnp.minimum(1.0, settings.max_rotation_step / jnp.maximum(rot, 1e-300))
+    dx, dy = dx * cap, dy * cap
     size = _step_size(model, dx)
     finite = jnp.isfinite(res) & jnp.isfinite(size)
     exhausted = c.backtracks >= settings.line_search_steps
@@ -213,9 +223,12 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: _NewtonStat
     stalled = accept & (step_norm(model, dx) <= settings.step_tolerance)
     base_R = jnp.where(accept, c.R, c.base_R)
     base_p = jnp.where(accept, c.p, c.base_p)
+    base_y = jnp.where(accept, c.y, c.base_y)
     dx = jnp.where(accept, dx, c.dx)
+    dy = jnp.where(accept, dy, c.dy)
     step = jnp.where(accept, 1.0, 0.5 * c.step)
     trial_R, trial_p = _update(base_R, base_p, step * dx)
+    trial_y = base_y + step * dy
     iterations = c.iterations + accept
     # a non-finite trial from a base with no finite step (the first evaluation, or
     # after line_search_steps halvings) cannot be backtracked: the solve fails here
@@ -229,27 +242,43 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: _NewtonStat
     done = status != _RUNNING
     return _NewtonState(
         R=jnp.where(done, c.R, trial_R), p=jnp.where(done, c.p, trial_p),
-        base_R=base_R, base_p=base_p, dx=dx, step=step,
+        base_R=base_R, base_p=base_p, dx=dx, y=jnp.where(done, c.y, trial_y),
+        base_y=base_y, dy=dy, step=step,
         size_base=jnp.where(accept, size, c.size_base), res=res,
         res_base=jnp.where(accept, res, c.res_base),
         backtracks=jnp.where(accept, 0, c.backtracks + 1),
         iterations=iterations, status=status)
 
 
-def newton_start(R, p) -> _NewtonState:
-    """The Newton carry before the first pass, from the predicted frames (R, p)."""
+def newton_start(R, p, y) -> _NewtonState:
+    """The Newton carry before the first pass, from the predicted frames (R, p) and joint
+    multipliers y."""
     inf, zero = jnp.array(jnp.inf), jnp.array(0)
     return _NewtonState(R=R, p=p, base_R=R, base_p=p, dx=jnp.zeros(p.shape[:1] + (6,)),
+                        y=y, base_y=y, dy=jnp.zeros_like(y),
                         step=jnp.array(1.0), size_base=inf, res=inf, res_base=inf,
                         backtracks=zero, iterations=zero, status=jnp.array(_RUNNING))
 
 
 def newton_outcome(c: _NewtonState):
-    """(R, p, Newton steps, residual norm, status code) of a finished Newton carry."""
-    return c.R, c.p, jnp.maximum(c.iterations - 1, 0), c.res, c.status
+    """(R, p, y, Newton steps, residual norm, status code) of a finished Newton carry."""
+    return c.R, c.p, c.y, jnp.maximum(c.iterations - 1, 0), c.res, c.status
 
 
-def _newton(model: Model, settings: StaticSettings, R, p, lam, ref):
+def _mechanism_step(model: Model, ref, R, p, y, r, blocks):
+    """Residual norm and Newton step ``(dx (N,6), dy (M,))`` of the bordered system of rods,
+    bodies and joints (:mod:`simsoft_jax.mechanisms`). The norm adds the bodies' force
+    residuals and the joints' gaps (/ char_length) and rotations times the load scale
+    ``ref``, so a converged solve holds its joints to ``tolerance`` of the length."""
+    system = mechanisms.couple(model, R, p, y, r, blocks)
+    x, z = solve_coupled(factorize_coupled(system.blocks, system.B, system.C, system.D),
+                         -system.r, -system.r_z)
+    forces, gaps = mechanisms.violation_norm(model.structure, model, system.r_z)
+    res = jnp.sqrt(weighted_norm(model, system.r) ** 2 + forces ** 2 + (ref * gaps) ** 2)
+    return (res,) + mechanisms.split(model.structure, x, z)
+
+
+def _newton(model: Model, settings: StaticSettings, R, p, y, lam, ref):
     """Newton iterations at load level ``lam`` from (R, p) (spec S71) with damping.
 
     One loop evaluates residual, tangent and Newton step at a trial state. The trial is
@@ -260,12 +289,12 @@ def _newton(model: Model, settings: StaticSettings, R, p, lam, ref):
     does; a strict theta < 1 test rejects good steps of stiff rods) or is not finite; a
     rejected trial halves the step from the base. Every loop pass either accepts (counted
     against ``max_iterations``) or backtracks (at most ``line_search_steps`` in a row), so
-    the loop always ends (:func:`newton_pass`). Returns (R, p, Newton steps, residual
+    the loop always ends (:func:`newton_pass`). Returns (R, p, y, Newton steps, residual
     norm, status code).
     """
     c = jax.lax.while_loop(lambda c: c.status == _RUNNING,
                            lambda c: newton_pass(model, settings, lam, ref, c),
-                           newton_start(R, p))
+                           newton_start(R, p, y))
     return newton_outcome(c)
 
 
@@ -281,11 +310,14 @@ class _ContinuationState(NamedTuple):
     """Carry of :func:`_continuation`: the last accepted frames (R, p) at load level lam,
     the ones before (R_prev, p_prev at lam_prev) for the secant predictor, the next load
     increment dlam, counters, the residual at the last accepted level, and the status of
-    the last failed Newton solve (cause)."""
+    the last failed Newton solve (cause); y, y_prev: the joint multipliers at lam and
+    lam_prev."""
     R: jax.Array
     p: jax.Array
     R_prev: jax.Array
     p_prev: jax.Array
+    y: jax.Array
+    y_prev: jax.Array
     lam: jax.Array
     lam_prev: jax.Array
     dlam: jax.Array
@@ -298,16 +330,17 @@ class _ContinuationState(NamedTuple):
 
 
 def trial_level(c: _ContinuationState):
-    """The next load level of the continuation and the secant prediction of its frames:
-    ``(lam_try, R, p)``."""
+    """The next load level of the continuation and the secant prediction of its frames and
+    joint multipliers: ``(lam_try, R, p, y)``."""
     lam_try = c.lam + c.dlam
     lam_try = jnp.where(lam_try > 1.0 - 1e-9, 1.0, lam_try)  # no sliver step from round-off
     ratio = (lam_try - c.lam) / jnp.maximum(c.lam - c.lam_prev, 1e-300)
-    Rs, ps = _secant(c.R, c.p, c.R_prev, c.p_prev, jnp.where(c.accepted >= 1, ratio, 0.0))
-    return lam_try, Rs, ps
+    ratio = jnp.where(c.accepted >= 1, ratio, 0.0)
+    Rs, ps = _secant(c.R, c.p, c.R_prev, c.p_prev, ratio)
+    return lam_try, Rs, ps, c.y + ratio * (c.y - c.y_prev)
 
 
-def after_newton(settings: StaticSettings, c: _ContinuationState, lam_try, R, p, its, res,
+def after_newton(settings: StaticSettings, c: _ContinuationState, lam_try, R, p, y, its, res,
                  status) -> _ContinuationState:
     """The continuation carry after the Newton solve at ``lam_try`` ended with ``status``:
     a converged level is accepted and the increment grows by 1.5 after an easy solve (fewer
@@ -317,7 +350,8 @@ def after_newton(settings: StaticSettings, c: _ContinuationState, lam_try, R, p,
     keep = lambda new, old: jnp.where(ok, new, old)  # noqa: E731
     return _ContinuationState(
         R=keep(R, c.R), p=keep(p, c.p), R_prev=keep(c.R, c.R_prev),
-        p_prev=keep(c.p, c.p_prev), lam_prev=keep(c.lam, c.lam_prev),
+        p_prev=keep(c.p, c.p_prev), y=keep(y, c.y), y_prev=keep(c.y, c.y_prev),
+        lam_prev=keep(c.lam, c.lam_prev),
         lam=keep(lam_try, c.lam),
         dlam=jnp.where(ok, jnp.minimum(c.dlam * grow, 1.0 / settings.load_steps), 0.5 * c.dlam),
         accepted=c.accepted + ok, failures=c.failures + (~ok),
@@ -335,8 +369,10 @@ def continuing(settings: StaticSettings, c: _ContinuationState):
 def continuation_start(model: Model, settings: StaticSettings) -> _ContinuationState:
     """The continuation carry at load level 0 (the start frames of ``model``)."""
     zero = jnp.array(0)
+    y = jnp.zeros(mechanisms.multiplier_count(model.structure), model.p0.dtype)
     return _ContinuationState(
-        R=model.R0, p=model.p0, R_prev=model.R0, p_prev=model.p0, lam=jnp.array(0.0),
+        R=model.R0, p=model.p0, R_prev=model.R0, p_prev=model.p0, y=y, y_prev=y,
+        lam=jnp.array(0.0),
         lam_prev=jnp.array(0.0), dlam=jnp.asarray(1.0 / settings.load_steps, jnp.float64),
         accepted=zero, failures=zero, iterations=zero, attempts=zero,
         residual=jnp.array(jnp.inf), cause=jnp.array(int(Status.NOT_RUN)))
@@ -349,7 +385,7 @@ def continuation_result(settings: StaticSettings, c: _ContinuationState) -> Equi
                        jnp.where(c.attempts >= settings.max_attempts, Status.MAX_ATTEMPTS,
                                  Status.STEP_TOO_SMALL))
     return Equilibrium(c.R, c.p, converged, c.iterations, c.residual, c.lam, c.accepted,
-                       c.failures, status, c.cause)
+                       c.failures, status, c.cause, c.y)
 
 
 def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
@@ -357,9 +393,9 @@ def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
     ref = load_scale(model)
 
     def body(c: _ContinuationState) -> _ContinuationState:
-        lam_try, Rs, ps = trial_level(c)
-        R, p, its, res, status = _newton(model, settings, Rs, ps, lam_try, ref)
-        return after_newton(settings, c, lam_try, R, p, its, res, status)
+        lam_try, Rs, ps, ys = trial_level(c)
+        R, p, y, its, res, status = _newton(model, settings, Rs, ps, ys, lam_try, ref)
+        return after_newton(settings, c, lam_try, R, p, y, its, res, status)
 
     c = jax.lax.while_loop(lambda c: continuing(settings, c), body,
                            continuation_start(model, settings))
@@ -367,17 +403,18 @@ def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0,))
-def _implicit(tangent: str, model: Model, converged, R, p):
-    """Identity on a converged equilibrium; its derivative is the IFT one (see module doc).
-    Held dofs follow the start frames ``model.R0, model.p0`` (a clamp holds its node
-    there). Where the solve did not converge the derivative is NaN: there is no
-    equilibrium to differentiate, and a finite number would be wrong."""
-    return R, p
+def _implicit(tangent: str, model: Model, converged, R, p, y):
+    """Identity on a converged equilibrium (frames R, p and joint multipliers y); its
+    derivative is the IFT one (see module doc). Held dofs follow the start frames
+    ``model.R0, model.p0`` (a clamp holds its node there). Where the solve did not
+    converge the derivative is NaN: there is no equilibrium to differentiate, and a
+    finite number would be wrong."""
+    return R, p, y
 
 
 @_implicit.defjvp
 def _implicit_jvp(tangent, primals, tangents):
-    model, converged, R, p = primals
+    model, converged, R, p, y = primals
     dmodel = tangents[0]
     held = 1.0 - model.structure.free_mask()
     # body-frame motion of the held dofs: translations R^T dp0, rotations vee(R^T dR0)
@@ -389,16 +426,24 @@ def _implicit_jvp(tangent, primals, tangents):
 
     def perturbed(m, x):
         Rx, px = _update(R, p, x)
-        return residual(m, Rx, px, 1.0)
+        r = residual(m, Rx, px, 1.0)
+        return mechanisms.residual(m, Rx, px, y, r) if m.structure.joints else (r, y)
 
-    _, dr = jax.jvp(perturbed, (model, jnp.zeros_like(moved)), (dmodel, moved))
-    _, blocks = residual_and_tangent(model, R, p, 1.0, tangent)
-    dxi = jnp.where(held > 0, moved, implicit_solve(blocks, -dr))
-    dxi = dxi * jnp.where(converged, 1.0, jnp.nan)
+    _, (dr, dr_z) = jax.jvp(perturbed, (model, jnp.zeros_like(moved)), (dmodel, moved))
+    r, blocks = residual_and_tangent(model, R, p, 1.0, tangent)
+    if model.structure.joints:
+        system = mechanisms.couple(model, R, p, y, r, blocks)
+        x, z = implicit_solve_coupled(system.blocks, system.B, system.C, system.D, -dr,
+                                      -dr_z)
+        x, dy = mechanisms.split(model.structure, x, z)
+    else:
+        x, dy = implicit_solve(blocks, -dr), jnp.zeros_like(y)
+    nan_if_failed = jnp.where(converged, 1.0, jnp.nan)
+    dxi = jnp.where(held > 0, moved, x) * nan_if_failed
     # d/dt [R exp(t dxi)] at t = 0: (R skew(dxi_w), R dxi_u)
     dR = jnp.einsum("nij,njk->nik", R, jax.vmap(lie.skew)(dxi[:, 3:]))
     dp = jnp.einsum("nij,nj->ni", R, dxi[:, :3])
-    return (R, p), (dR, dp)
+    return (R, p, y), (dR, dp, dy * nan_if_failed)
 
 
 def equilibrium(model: Model, settings: StaticSettings, continuation=None) -> Equilibrium:
@@ -407,8 +452,8 @@ def equilibrium(model: Model, settings: StaticSettings, continuation=None) -> Eq
     model = full_loads(model)
     eq = (continuation or _continuation)(jax.lax.stop_gradient(model),
                                          jax.lax.stop_gradient(settings))
-    R, p = _implicit(settings.tangent, model, eq.converged, eq.R, eq.p)
-    return eq._replace(R=R, p=p)
+    R, p, y = _implicit(settings.tangent, model, eq.converged, eq.R, eq.p, eq.multipliers)
+    return eq._replace(R=R, p=p, multipliers=y)
 
 
 @jit
