@@ -150,7 +150,8 @@ def solve_inverse(model: Model, actuate: Callable, nodes: Sequence, positions, u
     module docstring for the cost, the method and what the result reports.
 
     model: the robot (its actuated arrays are overwritten by ``actuate``). actuate:
-    ``(model, u (P,)) -> Model``, traceable and differentiable in u. nodes: M target nodes,
+    ``(model, u (P,)) -> Model``, traceable and differentiable in u; its attribute
+    ``size`` (P), where it has one, checks the shapes of u0 and the bounds. nodes: M target nodes,
     ints (model-wide) or ``(rod, node)``. positions: (M,3) or (B,M,3) world targets (m).
     u0: (P,) or (B,P) start values. lower, upper: (P,) bounds (default unbounded; ``-inf``
     / ``inf`` entries allowed). rotations: None or (M,3,3) / (B,M,3,3) target frames
@@ -170,7 +171,7 @@ def solve_inverse(model: Model, actuate: Callable, nodes: Sequence, positions, u
     P_t, _ = _batch("positions", positions, (m, 3))
     B = len(P_t)
     u0 = np.asarray(u0, float)
-    P = u0.shape[-1] if u0.ndim else 0
+    P = getattr(actuate, "size", u0.shape[-1] if u0.ndim else 0)
     U0, _ = _batch("u0", u0, (P,))
     if len(U0) not in (1, B):
         raise ValueError(f"u0: batch of {len(U0)} start values for {B} targets")

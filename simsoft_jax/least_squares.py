@@ -16,7 +16,9 @@ Two methods (the gradient is ``g = J^T r`` in both):
   divided by 3, any other (or a failed solve) multiplies ``lam`` by 4.
 * ``"lbfgs"``: optax L-BFGS directions (``optax.scale_by_lbfgs``, one state per problem)
   along which a projected backtracking (Armijo) line search halves the step until the cost
-  falls (a failed solve counts as no decrease).
+  falls (a failed solve counts as no decrease); components pinned at a bound are dropped
+  from the direction, and where the rest is no descent direction the projected steepest
+  descent is taken.
 
 A problem ends as ``REACHED`` when its ``error(r)`` is at most ``tolerance``; as
 ``STATIONARY`` when the projected gradient falls below ``gradient_tolerance * |J| |r|``
@@ -83,7 +85,7 @@ def _lm_step(J, r, lam, pinned):
 
 def least_squares(evaluate: Callable, u0, lower, upper, error: Callable, tolerance: float,
                   method: str = "levenberg_marquardt", max_steps: int = 50,
-                  gradient_tolerance: float = 1e-9) -> Solution:
+                  gradient_tolerance: float = 1e-6) -> Solution:
     """Solve the batch of bounded least-squares problems described in the module doc.
 
     evaluate: ``U (B,P) -> (r (B,n), J (B,n,P), ok (B,))``. u0, lower, upper: (B,P) (the
@@ -170,6 +172,12 @@ class _Lbfgs:
         if self.direction is None:   # first step: the memory is empty, scaled gradient
             d, self.state = self.update(jnp.asarray(g), self.state, jnp.asarray(U))
             self.direction = -np.asarray(d)
+        # variables pinned at a bound do not move; a direction that is then no descent
+        # direction is replaced by the projected steepest descent
+        gp, pinned = projected_gradient(U, g, lower, upper)
+        d = np.where(pinned, 0.0, self.direction)
+        descent = np.sum(d * g, axis=1) < 0
+        d = np.where(descent[:, None], d, -gp)
         alpha = np.ones(len(U))
         pending = running.copy()
         out = [U.copy(), None, None, np.ones(len(U), bool), cost.copy()]
@@ -177,7 +185,7 @@ class _Lbfgs:
         n = 0
         for _ in range(30):
             trial = np.where(pending[:, None],
-                             np.clip(U + alpha[:, None] * self.direction, lower, upper), U)
+                             np.clip(U + alpha[:, None] * d, lower, upper), U)
             tr, tJ, tok = (np.asarray(a) for a in evaluate(trial))
             n += 1
             tcost = 0.5 * np.sum(tr * tr, axis=1)
