@@ -122,14 +122,14 @@ def _evaluator(actuate: Callable, nodes: tuple, with_rotations: bool):
         if with_rotations:
             rot = jax.vmap(lambda Rt, R: lie.log_so3(Rt.T @ R))(target_R, eq.R[idx])
             parts.append((w_rot * model.char_length * weights[:, None] * rot).ravel())
-        info = (eq.converged, eq.p[idx], eq.status, eq.cause, eq.load_level, eq.residual_norm)
-        return jnp.concatenate(parts), info
+        r = jnp.concatenate(parts)
+        return r, (r, eq.converged, eq.p[idx], eq.status, eq.cause, eq.load_level,
+                   eq.residual_norm)
 
     def one(model, settings, u, target_p, target_R, weights, w_rot):
-        J, _ = jax.jacfwd(residual, argnums=2, has_aux=True)(
+        J, (r, *info) = jax.jacfwd(residual, argnums=2, has_aux=True)(
             model, settings, u, target_p, target_R, weights, w_rot)
-        r, info = residual(model, settings, u, target_p, target_R, weights, w_rot)
-        return (r, J) + info
+        return (r, J, *info)
 
     return jit(jax.vmap(one, in_axes=(None, None, 0, 0, 0, None, None)))
 
