@@ -44,7 +44,8 @@ class InverseResult(NamedTuple):
     """Result of :func:`solve_inverse`, one row per target (B targets, P actuators).
 
     u (B,P): actuation found (units of the actuated arrays). error (B,): largest point
-    error (m; rotation targets count ``angle * rotation_weight * char_length``).
+    error (m; rotation targets count ``angle * rotation_weight * char_length``; NaN
+    where ``solve_failed``: there is no equilibrium to measure).
     relative_error (B,): error / length. length: total reference length of the rods (m).
     reached (B,): error <= tolerance * length. unreachable (B,): not reached and the cost
     is stationary (or no step lowers it) on the box. solve_failed (B,): the static solve
@@ -219,7 +220,7 @@ def solve_inverse(model: Model, actuate: Callable, nodes: Sequence, positions, u
 
     sol = least_squares(evaluate_logged, U0, lo, hi, lambda r: error(r) / length, tolerance,
                         method=method, max_steps=max_steps)
-    err = error(sol.r)
+    err = np.where(sol.outcome == Outcome.SOLVE_FAILED, np.nan, error(sol.r))
     evaluate(sol.u)   # positions at the solution (a batch of converged solves)
     positions_at = last["info"][3]
     messages = [_message(k, sol, err, length, first["info"]) for k in range(B)]

@@ -110,6 +110,16 @@ def test_planar_reachable_closed_form_bounds_and_unreachable(planar):
     assert np.all(lb.reached[:4]) and np.all(lb.relative_error[:4] <= REACH), lb.messages
     assert np.all(lb.unreachable[4:]) and np.all(lb.u[:, 0] >= 0.0)
 
+    # a static solve that cannot converge (no tolerance can be met, few load halvings):
+    # reported with its cause, nothing tried, no error value
+    never = sj.StaticSettings(tolerance=0.0, step_tolerance=0.0, stagnation_level=0.0,
+                              min_step_fraction=0.25)
+    bad = sj.solve_inverse(model, actuate, NODES, targets, [0.5, 0.5], settings=never)
+    assert np.all(bad.solve_failed) and not np.any(bad.reached | bad.unreachable)
+    assert np.all(np.isnan(bad.error)) and np.all(bad.iterations == 0)
+    assert "static solve failed at the start point" in bad.messages[0]
+    assert "Newton reached its iteration limit" in bad.messages[0]
+
 
 def test_spatial_four_actuators(spatial):
     """3-D robot, 4 moments: random reachable targets for the middle and tip nodes."""
