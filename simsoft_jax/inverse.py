@@ -54,7 +54,8 @@ class InverseResult(NamedTuple):
     iterations (B,), solves (B,): optimizer iterations and forward solves (each with its
     Jacobian). failed_trials (B,): trial points whose static solve failed (rejected, the
     search went on). active (B,P): bounds active at u. gradient_norm (B,): projected
-    gradient of the cost at u. positions (B,M,3): reached node positions (m). seconds:
+    gradient of the cost at u. positions (B,M,3): node positions at u (m; NaN where
+    ``solve_failed``). seconds:
     wall time of the whole batch (s, compilation included on a first call).
     """
     u: np.ndarray
@@ -113,8 +114,9 @@ def _batch(name: str, value, shape: tuple):
 
 @functools.lru_cache(maxsize=16)
 def _evaluator(actuate: Callable, nodes: tuple, with_rotations: bool):
-    """Jitted ``(model, settings, U, P*, R*, w, w_rot) -> (r, J, ok, p, status, cause,
-    level, residual)`` vmapped over the batch (U, P*, R*)."""
+    """Jitted ``(model, settings, U, P*, R*, w, w_rot) -> (r, J, ok, status, cause,
+    level, residual)`` vmapped over the batch (U, P*, R*): residuals, their Jacobians
+    dr/du and the static solves' outcomes."""
     idx = np.array(nodes)
 
     def residual(model, settings, u, target_p, target_R, weights, w_rot):
@@ -124,8 +126,7 @@ def _evaluator(actuate: Callable, nodes: tuple, with_rotations: bool):
             rot = jax.vmap(lambda Rt, R: lie.log_so3(Rt.T @ R))(target_R, eq.R[idx])
             parts.append((w_rot * model.char_length * weights[:, None] * rot).ravel())
         r = jnp.concatenate(parts)
-        return r, (r, eq.converged, eq.p[idx], eq.status, eq.cause, eq.load_level,
-                   eq.residual_norm)
+        return r, (r, eq.converged, eq.status, eq.cause, eq.load_level, eq.residual_norm)
 
     def one(model, settings, u, target_p, target_R, weights, w_rot):
         J, (r, *info) = jax.jacfwd(residual, argnums=2, has_aux=True)(
@@ -185,10 +186,9 @@ def solve_inverse(model: Model, actuate: Callable, nodes: Sequence, positions, u
                          f"upper[{bad[0]}] = {hi[bad[0]]}")
     if rotations is not None:
         R_t, _ = _batch("rotations", rotations, (m, 3, 3))
-        if len(R_t) != B:
-            R_t = np.broadcast_to(R_t, (B, m, 3, 3)) if len(R_t) == 1 else None
-            if R_t is None:
-                raise ValueError("rotations: batch size differs from positions'")
+        if len(R_t) not in (1, B):
+            raise ValueError(f"rotations: a batch of {len(R_t)} for {B} targets")
+        R_t = np.broadcast_to(R_t, (B, m, 3, 3))
     else:
         R_t = np.broadcast_to(np.eye(3), (B, m, 3, 3))
     w = np.ones(m) if weights is None else np.asarray(weights, float)
@@ -199,40 +199,33 @@ def solve_inverse(model: Model, actuate: Callable, nodes: Sequence, positions, u
             raise ValueError(f"{name}: contains non-finite values")
     evaluate_all = _evaluator(actuate, idx, rotations is not None)
     traced = as_traced(settings)
-    last = {}
+    start_info = []    # status, cause, load level, residual of the solves at u0
 
     def evaluate(U):
-        out = evaluate_all(model, traced, jnp.asarray(U), jnp.asarray(P_t), jnp.asarray(R_t),
-                           jnp.asarray(w), jnp.asarray(float(rotation_weight)))
-        last["info"] = [np.asarray(x) for x in out]
-        r, J, ok = last["info"][:3]
-        return r, J, ok
+        out = [np.asarray(x) for x in evaluate_all(
+            model, traced, jnp.asarray(U), jnp.asarray(P_t), jnp.asarray(R_t),
+            jnp.asarray(w), jnp.asarray(float(rotation_weight)))]
+        if not start_info:
+            start_info.extend(out[3:7])
+        return out[:3]
 
     length = float(np.sum(np.asarray(model.length)))
     error = lambda r: point_errors(r, m)  # noqa: E731
-    first = {}
-
-    def evaluate_logged(U):
-        out = evaluate(U)
-        if not first:
-            first.update(info=last["info"])
-        return out
-
-    sol = least_squares(evaluate_logged, U0, lo, hi, lambda r: error(r) / length, tolerance,
+    sol = least_squares(evaluate, U0, lo, hi, lambda r: error(r) / length, tolerance,
                         method=method, max_steps=max_steps)
     err = np.where(sol.outcome == Outcome.SOLVE_FAILED, np.nan, error(sol.r))
-    evaluate(sol.u)   # positions at the solution (a batch of converged solves)
-    positions_at = last["info"][3]
-    messages = [_message(k, sol, err, length, first["info"]) for k in range(B)]
+    # the reached positions from the position residuals w (p - p*)
+    positions_at = sol.r[:, :3 * m].reshape(B, m, 3) / w[:, None] + P_t
+    positions_at[sol.outcome == Outcome.SOLVE_FAILED] = np.nan
+    messages = [_message(k, sol, err, length, start_info) for k in range(B)]
     unreachable = np.isin(sol.outcome, (Outcome.STATIONARY, Outcome.STALLED))
-    result = InverseResult(
+    return InverseResult(
         u=sol.u, error=err, relative_error=err / length, length=length,
         reached=sol.outcome == Outcome.REACHED, unreachable=unreachable,
         solve_failed=sol.outcome == Outcome.SOLVE_FAILED, outcome=sol.outcome,
         messages=messages, iterations=sol.steps, solves=sol.evaluations,
         failed_trials=sol.failed_trials, active=sol.active, gradient_norm=sol.gradient_norm,
         positions=positions_at, seconds=time.perf_counter() - start)
-    return result
 
 
 def _bound(name: str, value, P: int, default: float):
@@ -247,14 +240,14 @@ def _bound(name: str, value, P: int, default: float):
     return a
 
 
-def _message(k: int, sol, err, length: float, first_info) -> str:
+def _message(k: int, sol, err, length: float, start_info) -> str:
     """One sentence on how target k ended."""
     outcome = Outcome(int(sol.outcome[k]))
     rel = f"error {err[k]:.3g} m ({err[k] / length:.3g} of the length)"
     if outcome == Outcome.REACHED:
         return f"reached: {rel} after {sol.steps[k]} iterations"
     if outcome == Outcome.SOLVE_FAILED:
-        status, cause, level, res = (x[k] for x in first_info[4:8])
+        status, cause, level, res = (x[k] for x in start_info)
         return ("static solve failed at the start point u0: "
                 + describe("static", status, cause, float(level), float(res)))
     bounds = np.flatnonzero(sol.active[k])

@@ -64,8 +64,9 @@ def forward(model, actuate, U, nodes):
     return np.array(out)
 
 
-def check_reached(res, U_true, rows):
+def check_reached(res, U_true, targets, rows):
     assert np.all(res.reached[rows]), res.messages
+    np.testing.assert_allclose(res.positions[rows], targets[rows], atol=REACH)
     assert np.all(res.relative_error[rows] <= REACH)
     assert not np.any(res.unreachable[rows] | res.solve_failed[rows])
     # the map from the actuation to the target points is one to one here: same actuation
@@ -89,7 +90,7 @@ def test_planar_reachable_closed_form_bounds_and_unreachable(planar):
     lower, upper = [0.0, -np.inf], [np.inf, np.inf]
     res = sj.solve_inverse(model, actuate, NODES, targets, [0.5, 0.5], lower=lower,
                            upper=upper, tolerance=TOL, settings=TIGHT)
-    check_reached(res, U, slice(0, 3))
+    check_reached(res, U, targets, slice(0, 3))
     assert res.reached[3] and res.relative_error[3] <= REACH
     np.testing.assert_allclose(res.u[3], [0.0, M], atol=1e-6)
     assert np.all(res.u[:, 0] >= 0.0)                        # bounds respected
@@ -117,6 +118,7 @@ def test_planar_reachable_closed_form_bounds_and_unreachable(planar):
     bad = sj.solve_inverse(model, actuate, NODES, targets, [0.5, 0.5], settings=never)
     assert np.all(bad.solve_failed) and not np.any(bad.reached | bad.unreachable)
     assert np.all(np.isnan(bad.error)) and np.all(bad.iterations == 0)
+    assert np.all(np.isnan(bad.positions))
     assert "static solve failed at the start point" in bad.messages[0]
     assert "Newton reached its iteration limit" in bad.messages[0]
 
@@ -129,7 +131,7 @@ def test_spatial_four_actuators(spatial):
     targets = forward(model, actuate, U, [4, 8])
     res = sj.solve_inverse(model, actuate, [("arm", 4), ("arm", -1)], targets, np.zeros(4),
                            tolerance=TOL, settings=TIGHT)
-    check_reached(res, U, slice(None))
+    check_reached(res, U, targets, slice(None))
 
 
 @pytest.mark.slow
@@ -156,7 +158,7 @@ def test_twenty_random_targets_each_robot(planar, spatial):
         targets = forward(model, actuate, U, NODES)
         res = sj.solve_inverse(model, actuate, NODES, targets, np.zeros(P), tolerance=TOL,
                                settings=TIGHT)
-        check_reached(res, U, slice(None))
+        check_reached(res, U, targets, slice(None))
 
 
 def test_bad_input_names_the_argument(planar):
