@@ -44,7 +44,7 @@ class InverseResult(NamedTuple):
     """Result of :func:`solve_inverse`, one row per target (B targets, P actuators).
 
     u (B,P): actuation found (units of the actuated arrays). error (B,): largest point
-    error (m; rotation targets count ``angle * rotation_weight * char_length``; NaN
+    error (m, times the node's weight; rotation targets count ``angle * rotation_weight * char_length``; NaN
     where ``solve_failed``: there is no equilibrium to measure).
     relative_error (B,): error / length. length: total reference length of the rods (m).
     reached (B,): error <= tolerance * length. unreachable (B,): not reached and the cost
@@ -106,9 +106,9 @@ def _batch(name: str, value, shape: tuple):
     """``value`` as a float array (B, *shape), accepting one (shape) or a batch."""
     a = np.asarray(value, float)
     if a.shape == shape:
-        return a[None], False
+        return a[None]
     if a.ndim == len(shape) + 1 and a.shape[1:] == shape:
-        return a, True
+        return a
     raise ValueError(f"{name}: expected shape {shape} or (batch, *{shape}), got {a.shape}")
 
 
@@ -153,8 +153,8 @@ def solve_inverse(model: Model, actuate: Callable, nodes: Sequence, positions, u
 
     model: the robot (its actuated arrays are overwritten by ``actuate``). actuate:
     ``(model, u (P,)) -> Model``, traceable and differentiable in u; its attribute
-    ``size`` (P), where it has one, checks the shapes of u0 and the bounds. nodes: M target nodes,
-    ints (model-wide) or ``(rod, node)``. positions: (M,3) or (B,M,3) world targets (m).
+    ``size`` (P), where it has one, checks the shapes of u0 and the bounds. nodes: M
+    target nodes, ints (model-wide) or ``(rod, node)``. positions: (M,3) or (B,M,3) world targets (m).
     u0: (P,) or (B,P) start values. lower, upper: (P,) bounds (default unbounded; ``-inf``
     / ``inf`` entries allowed). rotations: None or (M,3,3) / (B,M,3,3) target frames
     (columns: local axes in world coordinates). weights: (M,) per-node weights (default
@@ -170,11 +170,11 @@ def solve_inverse(model: Model, actuate: Callable, nodes: Sequence, positions, u
     start = time.perf_counter()
     idx = node_indices(model, nodes)
     m = len(idx)
-    P_t, _ = _batch("positions", positions, (m, 3))
+    P_t = _batch("positions", positions, (m, 3))
     B = len(P_t)
     u0 = np.asarray(u0, float)
     P = getattr(actuate, "size", u0.shape[-1] if u0.ndim else 0)
-    U0, _ = _batch("u0", u0, (P,))
+    U0 = _batch("u0", u0, (P,))
     if len(U0) not in (1, B):
         raise ValueError(f"u0: batch of {len(U0)} start values for {B} targets")
     U0 = np.broadcast_to(U0, (B, P)).copy()
@@ -185,7 +185,7 @@ def solve_inverse(model: Model, actuate: Callable, nodes: Sequence, positions, u
         raise ValueError(f"lower: lower[{bad[0]}] = {lo[bad[0]]} exceeds "
                          f"upper[{bad[0]}] = {hi[bad[0]]}")
     if rotations is not None:
-        R_t, _ = _batch("rotations", rotations, (m, 3, 3))
+        R_t = _batch("rotations", rotations, (m, 3, 3))
         if len(R_t) not in (1, B):
             raise ValueError(f"rotations: a batch of {len(R_t)} for {B} targets")
         R_t = np.broadcast_to(R_t, (B, m, 3, 3))

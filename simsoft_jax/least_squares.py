@@ -16,7 +16,8 @@ Two methods (the gradient is ``g = J^T r`` in both):
   divided by 3, any other (or a failed solve) multiplies ``lam`` by 4.
 * ``"lbfgs"``: optax L-BFGS directions (``optax.scale_by_lbfgs``, one state per problem)
   along which a projected backtracking (Armijo) line search halves the step until the cost
-  falls (a failed solve counts as no decrease); components pinned at a bound are dropped
+  falls (a failed solve counts as no decrease); the first step (empty memory) is the
+  Cauchy step of the Gauss-Newton model along the gradient; components pinned at a bound are dropped
   from the direction, and where the rest is no descent direction the projected steepest
   descent is taken.
 
@@ -130,7 +131,7 @@ def least_squares(evaluate: Callable, u0, lower, upper, error: Callable, toleran
             stalled = running & ~accept & (lam > 1e12)
         else:
             trial, tr, tJ, tok, tcost, accept, stalled, n = lbfgs.search(
-                evaluate, U, g, cost, running, lower, upper)
+                evaluate, U, g, np.nan_to_num(J), cost, running, lower, upper)
             evals += n - 1
         evals += running
         failed += running & ~tok
@@ -168,10 +169,16 @@ class _Lbfgs:
         self.state = jax.tree_util.tree_map(keep, state, self.state)
         self.direction = np.where(accept[:, None], -np.asarray(d), self.direction)
 
-    def search(self, evaluate, U, g, cost, running, lower, upper):
-        if self.direction is None:   # first step: the memory is empty, scaled gradient
+    def search(self, evaluate, U, g, J, cost, running, lower, upper):
+        if self.direction is None:
+            # first step: the memory is empty; the steepest descent step to the minimum of
+            # the Gauss-Newton model along it (Cauchy step, length |g|^2 / |J g|^2), so
+            # that the step has the units of u whatever their scale
             d, self.state = self.update(jnp.asarray(g), self.state, jnp.asarray(U))
-            self.direction = -np.asarray(d)
+            d = np.asarray(d)
+            Jd = np.einsum("bni,bi->bn", J, d)
+            step = np.sum(g * d, axis=1) / np.maximum(np.sum(Jd * Jd, axis=1), 1e-300)
+            self.direction = -step[:, None] * d
         # variables pinned at a bound do not move; a direction that is then no descent
         # direction is replaced by the projected steepest descent
         gp, pinned = projected_gradient(U, g, lower, upper)
