@@ -105,7 +105,8 @@ def least_squares(evaluate: Callable, u0, lower, upper, error: Callable, toleran
     lam = np.full(B, 1e-3)
     lbfgs = _Lbfgs(U) if method == "lbfgs" else None
 
-    def finish():
+    def classify():
+        """Gradient and projected-gradient norm at U; ends reached and stationary problems."""
         g = np.einsum("bni,bn->bi", np.nan_to_num(J), np.nan_to_num(r))
         gp, _ = projected_gradient(U, g, lower, upper)
         gnorm = np.linalg.norm(gp, axis=1)
@@ -116,7 +117,7 @@ def least_squares(evaluate: Callable, u0, lower, upper, error: Callable, toleran
             Outcome.STATIONARY
         return g, gnorm
 
-    g, gnorm = finish()
+    g, gnorm = classify()
     while np.any(outcome == Outcome.RUNNING):
         running = outcome == Outcome.RUNNING
         if lbfgs is None:
@@ -132,7 +133,7 @@ def least_squares(evaluate: Callable, u0, lower, upper, error: Callable, toleran
         else:
             trial, tr, tJ, tok, tcost, accept, stalled, n = lbfgs.search(
                 evaluate, U, g, np.nan_to_num(J), cost, running, lower, upper)
-            evals += n - 1
+            evals += running * (n - 1)
         evals += running
         failed += running & ~tok
         steps += running
@@ -140,7 +141,7 @@ def least_squares(evaluate: Callable, u0, lower, upper, error: Callable, toleran
         r = np.where(accept[:, None], tr, r)
         J = np.where(accept[:, None, None], tJ, J)
         cost = np.where(accept, tcost, cost)
-        g, gnorm = finish()
+        g, gnorm = classify()
         if lbfgs is not None:
             lbfgs.advance(g, U, accept)
         outcome[(outcome == Outcome.RUNNING) & stalled] = Outcome.STALLED

@@ -191,3 +191,31 @@ def test_bad_input_names_the_argument(planar):
         with pytest.raises(ValueError) as info:
             sj.leaf_actuation(model, actuators)
         assert message in str(info.value), str(info.value)
+
+
+def test_least_squares_on_rosenbrock_with_a_bound():
+    """The batched bounded least squares alone, on Rosenbrock's residuals
+    r = (10 (u2 - u1^2), 1 - u1): minimum 0 at (1, 1); with u1 <= 0.5 the minimum is at
+    the bound, (0.5, 0.25), cost 0.5 * 0.5^2, a stationary point of the box."""
+    from simsoft_jax.least_squares import Outcome, least_squares
+
+    def evaluate(U):
+        u1, u2 = U[:, 0], U[:, 1]
+        r = np.stack([10 * (u2 - u1 ** 2), 1 - u1], axis=1)
+        J = np.zeros((len(U), 2, 2))
+        J[:, 0, 0], J[:, 0, 1], J[:, 1, 0] = -20 * u1, 10.0, -1.0
+        return r, J, np.ones(len(U), bool)
+
+    error = lambda r: np.max(np.abs(r), axis=1)  # noqa: E731
+    U0 = np.array([[-1.2, 1.0], [-1.2, 1.0]])
+    lower = np.array([-np.inf, -np.inf])
+    for method in ("levenberg_marquardt", "lbfgs"):
+        sol = least_squares(evaluate, U0, lower, np.array([np.inf, np.inf]), error, 1e-10,
+                            method=method, max_steps=200)
+        assert np.all(sol.outcome == Outcome.REACHED), (method, sol.outcome)
+        np.testing.assert_allclose(sol.u, 1.0, atol=1e-9)
+        sol = least_squares(evaluate, U0, lower, np.array([0.5, np.inf]), error, 1e-10,
+                            method=method, max_steps=200)
+        assert np.all(sol.outcome == Outcome.STATIONARY), (method, sol.outcome)
+        np.testing.assert_allclose(sol.u, [[0.5, 0.25]] * 2, atol=1e-7)
+        assert np.all(sol.active == [True, False])
