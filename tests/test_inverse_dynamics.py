@@ -1,4 +1,4 @@
-"""Trajectory optimization (:func:`simsoft_jax.inverse_dynamics.track_path`): the values of
+"""Trajectory optimization (:func:`simsoft_jax.track_path`): the values of
 a table time law that make the tip follow a target path.
 
 Robot: a clamped 1 m rod, 3 elements, EI = 1 N m^2, rhoA = 0.1 kg/m, a follower tip moment
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax.inverse_dynamics import track_path, tracking_residual
+from simsoft_jax.inverse_dynamics import tracking_residual
 from simsoft_jax.statics import as_traced
 
 KNOTS = [0.0, 0.1, 0.2, 0.3, 0.4]
@@ -46,7 +46,7 @@ def test_tracking_reaches_a_followable_path_and_recovers_the_time_law(robot):
     path = np.asarray(path)
     assert np.ptp(path[:, 1]) > 0.2, "the moments must move the tip"
     for method in ("lbfgs", "levenberg_marquardt"):
-        res = track_path(model, actuate, SETTINGS, ("arm", -1), path, np.zeros(4),
+        res = sj.track_path(model, actuate, SETTINGS, ("arm", -1), path, np.zeros(4),
                          method=method)
         assert res.outcome == 0, res.message
         assert res.improvement > 1e6, res.message          # 0.36 m -> below 4e-7 m
@@ -87,5 +87,5 @@ def test_bad_input(robot):
         args = dict(node=("arm", -1), path=np.zeros((21, 3)), u0=np.zeros(4))
         args.update(kwargs)
         with pytest.raises(ValueError, match=None) as info:
-            track_path(model, actuate, SETTINGS, **args)
+            sj.track_path(model, actuate, SETTINGS, **args)
         assert message in str(info.value), str(info.value)
