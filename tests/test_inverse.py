@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax.inverse import node_indices
+from simsoft_jax.inverse import _evaluator, node_indices
+from simsoft_jax.statics import as_traced
 
 TIGHT = sj.StaticSettings(tolerance=1e-12)
 NODES = [("arm", 4), ("arm", -1)]   # targets: middle and tip nodes
@@ -103,6 +104,21 @@ def test_planar_reachable_closed_form_bounds_and_unreachable(planar):
     # symmetry; bending pulls the tip back), tip 0.2 m short
     assert res.error[5] == pytest.approx(0.2, abs=1e-6)
     np.testing.assert_allclose(res.u[5], 0.0, atol=1e-5)
+
+    # the Jacobian the solver used (forward mode through the IFT derivative of the
+    # solves) against central differences of solves, at the start point of every target
+    evaluate = _evaluator(actuate, node_indices(model, NODES), False)
+    args = (jnp.asarray(targets), jnp.broadcast_to(jnp.eye(3), (6, 2, 3, 3)),
+            jnp.ones(2), jnp.asarray(1.0))
+    at = lambda U: [np.asarray(x) for x in  # noqa: E731
+                    evaluate(model, as_traced(TIGHT), jnp.asarray(U), *args)[:2]]
+    U0 = np.tile([0.5, 0.5], (6, 1))
+    J = at(U0)[1]
+    h = 1e-6
+    for k in range(2):
+        step = h * np.eye(2)[k]
+        fd = (at(U0 + step)[0] - at(U0 - step)[0]) / (2 * h)
+        assert np.linalg.norm(J[:, :, k] - fd) <= 1e-6 * np.linalg.norm(fd)
 
     # optax L-BFGS on the same batch (same compiled solves) reaches the reachable ones
     lb = sj.solve_inverse(model, actuate, NODES, targets, [0.5, 0.5], lower=lower,
