@@ -12,8 +12,9 @@ of node m (:func:`simsoft_jax.solve_static`) and ``L_c`` the model's ``char_leng
 rad). The Jacobian ``dr/du`` comes by forward mode (P tangents) through the solve's
 implicit-function-theorem derivative, never through Newton's iterations. The minimiser
 (:mod:`simsoft_jax.least_squares`) is projected Levenberg-Marquardt (default) or optax
-L-BFGS with a projected line search; a batch of targets is solved together, one compiled
-program per model structure, actuation map and batch size.
+L-BFGS with a projected line search; a batch of targets is solved together (vmapped), one
+compiled program per model structure, actuation map and batch size (``chunk`` fixes the
+size, so that batches of any size share one program).
 
 The result says per target whether the target was reached (largest point error, position
 in m and rotation angle times ``w_rot L_c``, at most ``tolerance`` times the rods' total
@@ -34,7 +35,7 @@ import numpy as np
 
 from . import lie
 from ._xla import jit
-from .least_squares import Outcome, least_squares
+from .least_squares import Outcome, Solution, least_squares
 from .model import Model
 from .statics import StaticSettings, as_traced, solve_static
 from .status import describe
@@ -147,6 +148,7 @@ def solve_inverse(model: Model, actuate: Callable, nodes: Sequence, positions, u
                   lower=None, upper=None, rotations=None, weights=None,
                   rotation_weight: float = 1.0, tolerance: float = 1e-7,
                   method: str = "levenberg_marquardt", max_steps: int = 50,
+                  chunk: int | None = None,
                   settings: StaticSettings = StaticSettings()) -> InverseResult:
     """Actuation u that brings ``nodes`` to ``positions`` (and ``rotations``); see the
     module docstring for the cost, the method and what the result reports.
@@ -161,7 +163,10 @@ def solve_inverse(model: Model, actuate: Callable, nodes: Sequence, positions, u
     1). rotation_weight: scales ``char_length`` as the length (m) one radian counts for.
     tolerance: reached when the largest point error is at most ``tolerance`` times the
     rods' total length. method: ``"levenberg_marquardt"`` or ``"lbfgs"`` (optax).
-    max_steps: optimizer iterations per target. settings: of every static solve.
+    max_steps: optimizer iterations per target. chunk: targets per compiled batch (None:
+    all B at once); with a chunk, batches of any size run as chunks of that size (the last
+    padded by repeating its last target) in one compiled program. settings: of every
+    static solve.
 
     Returns an :class:`InverseResult` (rows for a batch of B targets; B = 1 for one).
     ValueError naming the argument for bad shapes, bounds with lower > upper, an unknown
@@ -197,22 +202,38 @@ def solve_inverse(model: Model, actuate: Callable, nodes: Sequence, positions, u
     for name, a in (("positions", P_t), ("rotations", R_t), ("u0", U0)):
         if not np.all(np.isfinite(a)):
             raise ValueError(f"{name}: contains non-finite values")
+    chunk = B if chunk is None else chunk
+    if not isinstance(chunk, (int, np.integer)) or chunk < 1:
+        raise ValueError(f"chunk: expected a positive int (targets per compiled batch), "
+                         f"got {chunk!r}")
     evaluate_all = _evaluator(actuate, idx, rotations is not None)
     traced = as_traced(settings)
-    start_info = []    # status, cause, load level, residual of the solves at u0
-
-    def evaluate(U):
-        out = [np.asarray(x) for x in evaluate_all(
-            model, traced, jnp.asarray(U), jnp.asarray(P_t), jnp.asarray(R_t),
-            jnp.asarray(w), jnp.asarray(float(rotation_weight)))]
-        if not start_info:
-            start_info.extend(out[3:7])
-        return out[:3]
-
     length = float(np.sum(np.asarray(model.length)))
     error = lambda r: point_errors(r, m)  # noqa: E731
-    sol = least_squares(evaluate, U0, lo, hi, lambda r: error(r) / length, tolerance,
-                        method=method, max_steps=max_steps)
+
+    def solve_chunk(rows):
+        """Solution and start-point solve outcomes of targets ``rows``, padded to
+        ``chunk`` rows by repeating the last one (same shapes: the same program)."""
+        pad = lambda a: np.concatenate([a[rows], np.repeat(a[rows][-1:],  # noqa: E731
+                                                           chunk - len(a[rows]), axis=0)])
+        P_c, R_c, start = pad(P_t), pad(R_t), []
+
+        def evaluate(U):
+            out = [np.asarray(x) for x in evaluate_all(
+                model, traced, jnp.asarray(U), jnp.asarray(P_c), jnp.asarray(R_c),
+                jnp.asarray(w), jnp.asarray(float(rotation_weight)))]
+            if not start:
+                start.extend(out[3:7])
+            return out[:3]
+
+        sol = least_squares(evaluate, pad(U0), lo, hi, lambda r: error(r) / length,
+                            tolerance, method=method, max_steps=max_steps)
+        n = len(P_t[rows])
+        return [x[:n] for x in sol], [x[:n] for x in start]
+
+    parts = [solve_chunk(slice(k, k + chunk)) for k in range(0, B, chunk)]
+    sol = Solution(*(np.concatenate(x) for x in zip(*(p[0] for p in parts))))
+    start_info = [np.concatenate(x) for x in zip(*(p[1] for p in parts))]
     err = np.where(sol.outcome == Outcome.SOLVE_FAILED, np.nan, error(sol.r))
     # the reached positions from the position residuals w (p - p*)
     positions_at = sol.r[:, :3 * m].reshape(B, m, 3) / w[:, None] + P_t

@@ -167,13 +167,15 @@ def test_frame_target_closed_form(planar):
 
 @pytest.mark.slow
 def test_twenty_random_targets_each_robot(planar, spatial):
-    """The issue's count: 20 reachable random targets for each robot."""
+    """The issue's count: 20 reachable random targets for each robot, in chunks of the
+    batch sizes of the tests above (their compiled programs, when run in one session)."""
     rng = np.random.default_rng(3)
-    for (model, actuate), P in ((planar, 2), (spatial, 4)):
+    for (model, actuate), P, chunk in ((planar, 2, 6), (spatial, 4, 3)):
         U = rng.uniform(-1.0, 1.0, (20, P))
         targets = forward(model, actuate, U, NODES)
         res = sj.solve_inverse(model, actuate, NODES, targets, np.zeros(P), tolerance=TOL,
-                               settings=TIGHT)
+                               settings=TIGHT, chunk=chunk)
+        assert res.u.shape == (20, P)
         check_reached(res, U, targets, slice(None))
 
 
@@ -191,6 +193,7 @@ def test_bad_input_names_the_argument(planar):
         (dict(rotations=np.eye(3)), "rotations: expected shape (1, 3, 3)"),
         (dict(weights=[-1.0]), "weights: expected 1 positive weights"),
         (dict(method="newton"), "method: unknown method 'newton'"),
+        (dict(chunk=0), "chunk: expected a positive int"),
     ]
     for change, message in cases:
         args = dict(nodes=[8], positions=tip, u0=[0.0, 0.0])
