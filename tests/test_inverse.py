@@ -5,7 +5,8 @@ known random actuation (so reachable, and the actuation that made them is the on
 recover where it is unique); the closed form of a clamped straight rod under a follower
 tip moment M (an arc of curvature M/EI: tip at (sin(kL)/k, (1 - cos(kL))/k), k = M/EI);
 targets out of reach (further from the clamp than the rod is long) or needing actuation
-outside the bounds, which must be reported unreachable.
+outside the bounds, which must be reported unreachable; central differences of solves for
+the Jacobian; Rosenbrock's function for the least-squares solver alone.
 
 Robots: a planar one (1 m, 8 elements, EI = 1 N m^2) with follower moments about the
 local z axis at the middle and at the tip; a 3-D one (the same rod, EIy = 1.5) with
@@ -177,6 +178,21 @@ def test_twenty_random_targets_each_robot(planar, spatial):
                                settings=TIGHT, chunk=chunk)
         assert res.u.shape == (20, P)
         check_reached(res, U, targets, slice(None))
+
+
+@pytest.mark.slow
+def test_base_pose_actuation_closed_form():
+    """A pose actuator: the clamp's position (the held node follows ``p0``, whose
+    derivative the implicit gradient carries) moved along y by D, with the tip moment M:
+    the arc of curvature M/EI shifted by D. The targets on it give back (D, M)."""
+    model = robot()
+    actuate = sj.leaf_actuation(model, [("p0", (0, 1)), ("nodal_follower", (-1, 5))])
+    M, D = 0.9, 0.05
+    arc = np.array([[np.sin(M * s) / M, D + (1 - np.cos(M * s)) / M, 0.0] for s in (0.5, 1)])
+    res = sj.solve_inverse(model, actuate, NODES, arc, [0.0, 0.3], tolerance=TOL,
+                           settings=TIGHT)
+    assert res.reached[0] and res.relative_error[0] <= REACH, res.messages
+    np.testing.assert_allclose(res.u[0], [D, M], atol=1e-8)
 
 
 def test_bad_input_names_the_argument(planar):
