@@ -49,7 +49,9 @@ def leaf_actuation(model: Model, actuators: Sequence[tuple]):
     array (an int, a tuple, slices: every entry it selects is set to ``u[j]``). Examples:
     a follower moment about the local z axis at the last node, ``("nodal_follower", (-1,
     5))`` (N m); a world force along x at node 3, ``("nodal_dead", (3, 0))`` (N); the
-    values of channel 0's time table, ``("channels.table_scale", (0, slice(1, 4)))``.
+    values of channel 0's time table, ``("channels.table_scale", (0, slice(1, 4)))``; the
+    y position of a clamped node 0, ``("p0", (0, 1))`` (m: held nodes stay at their start
+    frame in statics, and the implicit gradient carries its derivative).
 
     Raises ValueError naming ``actuators`` for an unknown array, an index outside it, an
     actuator selecting nothing, two actuators writing the same entry, or a load kind the
