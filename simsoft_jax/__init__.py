@@ -27,8 +27,11 @@ import jax as _jax
 
 _jax.config.update("jax_enable_x64", True)
 
+from .actuation import leaf_actuation  # noqa: E402
 from .dynamics import (DynamicSettings, State, Trajectory, energy,  # noqa: E402
                        initial_state, simulate)
+from .inverse import InverseResult, solve_inverse  # noqa: E402
+from .inverse_dynamics import TrackingResult, track_path  # noqa: E402
 from .loads import LoadChannels  # noqa: E402
 from .materials import BUILTIN_MATERIALS, Material, get_material  # noqa: E402
 from .model import Model, Structure, build_model  # noqa: E402
@@ -41,11 +44,12 @@ from .statics import Equilibrium, StaticSettings, solve_static  # noqa: E402
 from .status import SolveError, Status  # noqa: E402
 
 __all__ = [
-    "BUILTIN_MATERIALS", "DynamicSettings", "Equilibrium", "LoadChannels", "Material",
-    "Model", "Result", "Scene", "Section", "SolveError", "State", "StaticSettings", "Status",
-    "Structure", "Trajectory", "build_model", "circle", "custom_inertia", "custom_stiffness",
-    "energy", "get_material", "inertia_diagonal", "initial_state", "load_scene", "rectangle",
-    "run", "save_scene", "semicircle", "simulate", "solve_static",
-    "stiffness_diagonal", "tube", "viscosity_diagonal",
+    "BUILTIN_MATERIALS", "DynamicSettings", "Equilibrium", "InverseResult",
+    "LoadChannels", "Material", "Model", "Result", "Scene", "Section", "SolveError",
+    "State", "StaticSettings", "Status", "Structure", "TrackingResult", "Trajectory",
+    "build_model", "circle", "custom_inertia", "custom_stiffness", "energy",
+    "get_material", "inertia_diagonal", "initial_state", "leaf_actuation", "load_scene",
+    "rectangle", "run", "save_scene", "semicircle", "simulate", "solve_inverse",
+    "solve_static", "stiffness_diagonal", "track_path", "tube", "viscosity_diagonal",
 ]
 __version__ = "0.1.0"

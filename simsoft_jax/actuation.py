@@ -1,0 +1,93 @@
+"""Actuation maps ``actuate(model, u) -> Model``: how an array of actuation values u (P,)
+acts on a :class:`~simsoft_jax.model.Model`, for the inverse problems
+(:mod:`simsoft_jax.inverse`, :mod:`simsoft_jax.inverse_dynamics`).
+
+Any differentiable function of that form will do; :func:`leaf_actuation` builds the common
+one, where each actuator sets entries of a Model array (a nodal moment or force, a load
+channel's pattern or time table, a drive table, a tendon tension or chamber pressure once
+the model has such a leaf) to its value ``u[j]``, in that array's units.
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import jax
+import numpy as np
+
+from .model import Model
+
+# Model arrays that solvers read only when the structure traces that kind of load
+_FLAGS = {"nodal_dead": "has_nodal_dead", "nodal_follower": "has_nodal_follower",
+          "distributed_world": "has_distributed_world",
+          "distributed_local": "has_distributed_local",
+          "element_point_dead": "has_point_dead", "element_point_follower": "has_point_follower",
+          "gravity": "has_gravity"}
+
+
+def _leaf(tree, path: str):
+    for name in path.split("."):
+        if not hasattr(tree, name):
+            raise ValueError(f"actuators: the model has no array {path!r}")
+        tree = getattr(tree, name)
+    if not isinstance(tree, (jax.Array, np.ndarray)):
+        raise ValueError(f"actuators: {path!r} is not an array of the model")
+    return tree
+
+
+def _replace(tree, path: str, value):
+    head, _, rest = path.partition(".")
+    new = value if not rest else _replace(getattr(tree, head), rest, value)
+    return tree.replace(**{head: new})
+
+
+def leaf_actuation(model: Model, actuators: Sequence[tuple]):
+    """An ``actuate(model, u)`` that writes ``u[j]`` into the entries
+    ``<path_j>[index_j]`` of the model, for actuators ``[(path_j, index_j), ...]``.
+
+    path: a Model array name, or ``"channels.<array>"`` for a load channel's arrays
+    (e.g. ``"channels.table_scale"``). index: anything NumPy indexing accepts for that
+    array (an int, a tuple, slices: every entry it selects is set to ``u[j]``). Examples:
+    a follower moment about the local z axis at the last node, ``("nodal_follower", (-1,
+    5))`` (N m); a world force along x at node 3, ``("nodal_dead", (3, 0))`` (N); the
+    values of channel 0's time table, ``("channels.table_scale", (0, slice(1, 4)))``; the
+    y position of a clamped node 0, ``("p0", (0, 1))`` (m: held nodes stay at their start
+    frame in statics, and the implicit gradient carries its derivative).
+
+    Raises ValueError naming ``actuators`` for an unknown array, an index outside it, an
+    actuator selecting nothing, two actuators writing the same entry, or a load kind the
+    model's structure does not trace (build the scene with a zero load of that kind).
+    """
+    if not actuators:
+        raise ValueError("actuators: name at least one actuator")
+    written: dict = {}
+    for j, entry in enumerate(actuators):
+        if not (isinstance(entry, (tuple, list)) and len(entry) == 2):
+            raise ValueError(f"actuators[{j}]: expected (path, index), got {entry!r}")
+        path, index = entry
+        shape = _leaf(model, path).shape
+        hits = np.zeros(shape, bool)
+        try:
+            hits[index] = True
+        except IndexError as exc:
+            raise ValueError(f"actuators[{j}]: index {index!r} is outside {path!r} of shape "
+                             f"{shape}: {exc}") from None
+        if not hits.any():
+            raise ValueError(f"actuators[{j}]: index {index!r} selects no entry of {path!r}")
+        if path in written and np.any(written[path] & hits):
+            raise ValueError(f"actuators[{j}]: writes entries of {path!r} another actuator "
+                             "already writes")
+        written[path] = written.get(path, np.zeros(shape, bool)) | hits
+        flag = _FLAGS.get(path.split(".")[-1])
+        if flag and not getattr(model.structure, flag):
+            raise ValueError(f"actuators[{j}]: the model's structure has no {path!r} loads "
+                             f"({flag} is False), so the solvers would ignore them; add a "
+                             "zero load of that kind to the scene")
+    entries = tuple((path, index) for path, index in actuators)
+
+    def actuate(m: Model, u) -> Model:
+        for j, (path, index) in enumerate(entries):
+            m = _replace(m, path, _leaf(m, path).at[index].set(u[j]))
+        return m
+
+    actuate.size = len(entries)
+    return actuate
