@@ -60,7 +60,9 @@ def compiled_static_solver(model: Model, settings):
     if key in _COMPILED:
         return _COMPILED[key], 0.0
     start = time.perf_counter()
-    out_tree = jax.tree_util.tree_structure(Equilibrium(*[0] * len(Equilibrium._fields)))
+    joints = 0 if model.structure.joints else None   # multipliers only with joints
+    out_tree = jax.tree_util.tree_structure(
+        Equilibrium(*[0] * (len(Equilibrium._fields) - 1), joints))
     compiled = compile_stored(_solve_static, (model, as_traced(settings)), out_tree,
                               "static")
     _COMPILED[key] = compiled

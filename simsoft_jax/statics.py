@@ -96,7 +96,7 @@ class Equilibrium(NamedTuple):
     reached, 1 when converged), load_steps (accepted continuation steps), step_failures
     (halvings), status (:class:`~simsoft_jax.status.Status` code: how the solve ended),
     cause (the reason of the last failed Newton solve, ``NOT_RUN`` if none), multipliers
-    (M,): the joint multipliers (:mod:`~simsoft_jax.mechanisms`; empty without joints)."""
+    (M,): the joint multipliers (:mod:`~simsoft_jax.mechanisms`; None without joints)."""
     R: jax.Array
     p: jax.Array
     converged: jax.Array
@@ -107,7 +107,7 @@ class Equilibrium(NamedTuple):
     step_failures: jax.Array
     status: jax.Array
     cause: jax.Array
-    multipliers: jax.Array
+    multipliers: jax.Array | None = None
 
     def message(self) -> str:
         """How the solve ended, in words (concrete, unbatched results)."""
@@ -385,7 +385,7 @@ def continuation_result(settings: StaticSettings, c: _ContinuationState) -> Equi
                        jnp.where(c.attempts >= settings.max_attempts, Status.MAX_ATTEMPTS,
                                  Status.STEP_TOO_SMALL))
     return Equilibrium(c.R, c.p, converged, c.iterations, c.residual, c.lam, c.accepted,
-                       c.failures, status, c.cause, c.y)
+                       c.failures, status, c.cause, c.y if c.y.size else None)
 
 
 def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
@@ -452,6 +452,9 @@ def equilibrium(model: Model, settings: StaticSettings, continuation=None) -> Eq
     model = full_loads(model)
     eq = (continuation or _continuation)(jax.lax.stop_gradient(model),
                                          jax.lax.stop_gradient(settings))
+    if eq.multipliers is None:       # no joints
+        R, p, _ = _implicit(settings.tangent, model, eq.converged, eq.R, eq.p, jnp.zeros(0))
+        return eq._replace(R=R, p=p)
     R, p, y = _implicit(settings.tangent, model, eq.converged, eq.R, eq.p, eq.multipliers)
     return eq._replace(R=R, p=p, multipliers=y)
 
