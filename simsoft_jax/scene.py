@@ -23,6 +23,7 @@ from ._validate import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, fa
                         readonly, require, rodrigues, rotation_vector, string, table,
                         toml_document, vector)
 from .materials import BUILTIN_MATERIALS, Material, get_material
+from .scene_actuators import parse_chambers, parse_tendons
 from .scene_attachments import parse_masses, parse_offset, parse_stiffness
 from .scene_initial import parse_initial
 from .scene_limits import (MAX_ELEMENTS, MAX_STEPS, check_elements, check_loads_on_held_nodes,
@@ -50,6 +51,8 @@ class Scene(SpecBase):
     source: str | None = None
     raw: dict = dataclasses.field(default_factory=dict)
     masses: tuple = ()                # MassSpec per [[masses]] entry
+    tendons: tuple = ()               # TendonSpec per [[tendons]] entry
+    chambers: tuple = ()              # ChamberSpec per [[chambers]] entry
 
     @classmethod
     def from_dict(cls, d: dict, base_dir: str | Path | None = None) -> "Scene":
@@ -76,7 +79,7 @@ class Scene(SpecBase):
 # ----------------------------------------------------------------------------- parsing
 
 _TOP_KEYS = ("name", "solver", "gravity", "materials", "rods", "constraints", "loads",
-             "initial_velocity", "masses")
+             "initial_velocity", "masses", "tendons", "chambers")
 _SOLVER_KEYS = ("kind", "tolerance", "max_iterations", "load_steps", "t_end", "dt",
                 "rho_inf", "save_every", "inertia", "tangent", "max_steps")
 _MATERIAL_KEYS = ("name", "E", "G", "nu", "density", "viscosity", "mass_damping")
@@ -136,6 +139,9 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
                   for i, item in enumerate(_array_of_tables(raw, "loads")))
     velocities = _parse_velocities(_array_of_tables(raw, "initial_velocity"), rods)
     masses = parse_masses(_array_of_tables(raw, "masses"), rods, _node)
+    profile = lambda value, path: _parse_profile(value, path, base_dir)  # noqa: E731
+    tendons = parse_tendons(_array_of_tables(raw, "tendons"), rods, profile)
+    chambers = parse_chambers(_array_of_tables(raw, "chambers"), rods, profile)
     if solver.kind == "dynamic":
         warn_short_features(loads, constraints, solver.dt)
     check_loads_on_held_nodes(raw.get("loads", []), loads, constraints)
@@ -158,7 +164,7 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
                 raise ValueError(message)
     return Scene(name=name, solver=solver, gravity=gravity, rods=tuple(rods.values()),
                  constraints=constraints, loads=loads, initial_velocity=velocities,
-                 source=None, raw=raw, masses=masses)
+                 source=None, raw=raw, masses=masses, tendons=tendons, chambers=chambers)
 
 
 def _parse_solver(value: Any) -> SolverSettings:

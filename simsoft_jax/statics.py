@@ -161,6 +161,13 @@ def load_scale(model: Model):
         total = total + jnp.sum(w ** 2) + jnp.sum(
             (jnp.linalg.norm(model.mass_offset, axis=1) * jnp.linalg.norm(w, axis=1)
              / model.char_length) ** 2)
+    if s.tendon_names:   # tendon tensions and the moments they make at their offsets
+        r = jnp.max(jnp.linalg.norm(model.tendon_offset, axis=-1), axis=(1, 2))
+        total = total + jnp.sum(model.tendon_tension ** 2 * (1.0 + (r / model.char_length) ** 2))
+    if s.chamber_names:  # pressure times area, and its moment at the chamber's offset
+        r = jnp.linalg.norm(model.chamber_offset, axis=-1)
+        f = model.chamber_pressure * model.chamber_area
+        total = total + jnp.sum(f ** 2 * (1.0 + (r / model.char_length) ** 2))
     return jnp.sqrt(total)
 
 
