@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from . import compile_cache
@@ -131,6 +132,20 @@ class Result:
             raise ValueError("velocities: a static result has none (run a dynamic scene)")
         return np.asarray(self.raw.v)[:, self._nodes(rod)].copy()
 
+    def tendon_tension(self, name: str):
+        """Tension (N) of the tendon ``name``: a float for a static result, (T,) at the
+        saved times for a dynamic one (its tension times its time law)."""
+        s = self.model.structure
+        if name not in s.tendon_names:
+            raise ValueError(f"tendon_tension: no tendon named {name!r} (known: "
+                             f"{', '.join(s.tendon_names) or 'none'})")
+        m = s.tendon_names.index(name)
+        tension = float(self.model.tendon_tension[m])
+        if self.time is None:
+            return tension
+        law = self.model.tendon_law
+        return tension * np.asarray(jax.vmap(law.scales)(jnp.asarray(self.time)))[:, m]
+
     def to_dict(self) -> dict:
         """The result-file layout of the scene-format contract (plain Python types);
         dynamic results add per-rod ``velocities`` (T, nodes, 6), as :meth:`velocities`.
@@ -147,6 +162,9 @@ class Result:
              "newton_iterations": self.newton_iterations,
              "residual_norm": self.residual_norm, "wall_time_s": self.wall_time_s,
              "compile_time_s": self.compile_time_s, "rods": rods}
+        if self.model.structure.tendon_names:
+            d["tendons"] = {name: {"tension": self.tendon_tension(name)}
+                            for name in self.model.structure.tendon_names}
         if self.time is not None:
             d["time"] = self.time
         else:  # static: None when not checked (not converged, or skipped)
@@ -164,9 +182,10 @@ class Result:
     def save(self, path) -> Path:
         """Write the result as ``.json`` (contract layout, strict JSON: no NaN/Infinity)
         or ``.npz`` (same keys; per-rod arrays as ``<rod>/positions``, ``<rod>/rotations``
-        and, dynamic, ``<rod>/velocities``). The file is written to a temporary name in
-        the same folder and renamed: a failed or interrupted write leaves the old file
-        (or none), never a partial one. An existing file is replaced."""
+        and, dynamic, ``<rod>/velocities``; tendon tensions as
+        ``tendons/<name>/tension``). The file is written to a temporary name in the same
+        folder and renamed: a failed or interrupted write leaves the old file (or none),
+        never a partial one. An existing file is replaced."""
         path = Path(path)
         if path.suffix == ".json":
             # one line per top-level key: JSON's C encoder (an indent would use its
@@ -179,7 +198,10 @@ class Result:
             raise ValueError(f"output: unsupported suffix {path.suffix!r} (use .json or .npz)")
         d = self.to_dict()
         arrays = {k: np.asarray(v) for k, v in d.items()
-                  if k not in ("rods", "failed_at", "time", "stability") and v is not None}
+                  if k not in ("rods", "failed_at", "time", "stability", "tendons")
+                  and v is not None}
+        for name in self.model.structure.tendon_names:
+            arrays[f"tendons/{name}/tension"] = np.asarray(self.tendon_tension(name))
         if self.stability is not None:
             arrays["stability/negative_eigenvalues"] = self.stability["negative_eigenvalues"]
         if self.time is not None:
