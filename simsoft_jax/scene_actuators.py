@@ -110,7 +110,9 @@ def parse_tendons(items: list, rods: dict, parse_profile) -> tuple:
                 fail(join(path, "tension"), f"must be >= 0 (a tendon cannot push), got "
                      f"{tension}")
         else:
-            displacement = number(item["displacement"], join(path, "displacement"))
+            number(item["displacement"], join(path, "displacement"))
+            fail(join(path, "displacement"), "displacement control is not supported yet "
+                 "(give tension)")
         ppath = join(path, "profile")
         profile = parse_profile(item.get("profile", {"kind": "constant"}), ppath)
         _check_pulls(profile, ppath)

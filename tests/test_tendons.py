@@ -326,3 +326,10 @@ def test_bad_actuator_input_names_the_key(key, change, path):
 def test_duplicate_tendon_names_are_refused():
     with pytest.raises(ValueError, match=r"tendons\[1\]\.name: duplicate name 't1'"):
         sj.Scene.from_dict(rod_scene(4, tendons=[TENDON, TENDON]))
+
+
+def test_displacement_control_is_refused_until_supported():
+    item = {k: v for k, v in TENDON.items() if k != "tension"}
+    with pytest.raises(ValueError, match=r"tendons\[0\]\.displacement: displacement control "
+                                         r"is not supported yet"):
+        sj.Scene.from_dict(rod_scene(4, tendons=[dict(item, displacement=-0.005)]))
