@@ -11,6 +11,7 @@ from __future__ import annotations
 import collections
 import json
 import time
+import warnings
 from pathlib import Path
 
 import jax
@@ -110,6 +111,22 @@ class Result:
             self.failed_at = None
         self._R = np.asarray(raw.R)
         self._p = np.asarray(raw.p)
+        self.slack_tendons = self._slack_tendons()
+        if self.slack_tendons:
+            note = (f"tendon{'s' * (len(self.slack_tendons) > 1)} "
+                    f"{', '.join(map(repr, self.slack_tendons))} would have to push "
+                    "(negative tension): slack, the solved shape is not physical")
+            self.message += f"; {note}"
+            warnings.warn(note, stacklevel=2)
+
+    def _slack_tendons(self) -> tuple:
+        """Names of the displacement-controlled tendons whose solved tension is below 0."""
+        s = self.model.structure
+        if self.time is not None or not any(s.tendon_displaced):
+            return ()
+        return tuple(n for n, flag, t in zip(s.tendon_names, s.tendon_displaced,
+                                             np.asarray(self.raw.tendon_tension))
+                     if flag and t < 0.0)
 
     def _nodes(self, rod: str) -> slice:
         info = self.model.structure.rod(rod)
@@ -140,9 +157,9 @@ class Result:
             raise ValueError(f"tendon_tension: no tendon named {name!r} (known: "
                              f"{', '.join(s.tendon_names) or 'none'})")
         m = s.tendon_names.index(name)
+        if self.time is None:   # solved for displacement-controlled tendons
+            return float(self.raw.tendon_tension[m])
         tension = float(self.model.tendon_tension[m])
-        if self.time is None:
-            return tension
         law = self.model.tendon_law
         return tension * np.asarray(jax.vmap(law.scales)(jnp.asarray(self.time)))[:, m]
 

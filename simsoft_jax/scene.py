@@ -140,7 +140,8 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
     velocities = _parse_velocities(_array_of_tables(raw, "initial_velocity"), rods)
     masses = parse_masses(_array_of_tables(raw, "masses"), rods, _node)
     profile = lambda value, path: _parse_profile(value, path, base_dir)  # noqa: E731
-    tendons = parse_tendons(_array_of_tables(raw, "tendons"), rods, profile)
+    tendons = parse_tendons(_array_of_tables(raw, "tendons"), rods, profile,
+                            solver.kind == "dynamic")
     chambers = parse_chambers(_array_of_tables(raw, "chambers"), rods, profile)
     if solver.kind == "dynamic":
         warn_short_features(loads, constraints, solver.dt)

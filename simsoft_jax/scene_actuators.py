@@ -89,9 +89,10 @@ def _check_pulls(profile, path):
         fail(path, "makes the tension negative (a tendon cannot push)")
 
 
-def parse_tendons(items: list, rods: dict, parse_profile) -> tuple:
+def parse_tendons(items: list, rods: dict, parse_profile, dynamic: bool) -> tuple:
     """``[[tendons]]`` -> :class:`~simsoft_jax.scene_specs.TendonSpec` tuple.
-    ``parse_profile(value, path)`` parses a ``profile`` table."""
+    ``parse_profile(value, path)`` parses a ``profile`` table; ``dynamic``: the scene is
+    dynamic (displacement control is static only)."""
     from .scene_specs import TendonSpec
 
     out, seen = [], set()
@@ -110,9 +111,10 @@ def parse_tendons(items: list, rods: dict, parse_profile) -> tuple:
                 fail(join(path, "tension"), f"must be >= 0 (a tendon cannot push), got "
                      f"{tension}")
         else:
-            number(item["displacement"], join(path, "displacement"))
-            fail(join(path, "displacement"), "displacement control is not supported yet "
-                 "(give tension)")
+            displacement = number(item["displacement"], join(path, "displacement"))
+            if dynamic:
+                fail(join(path, "displacement"), "displacement control is supported in "
+                     "static scenes only (give tension for a dynamic run)")
         ppath = join(path, "profile")
         profile = parse_profile(item.get("profile", {"kind": "constant"}), ppath)
         _check_pulls(profile, ppath)

@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import lie
+from . import lie, tendon_control
 from ._xla import jit
 from .assembly import check_tangent, residual, residual_and_tangent
 from .linalg import block_solve, implicit_solve
@@ -94,7 +94,9 @@ class Equilibrium(NamedTuple):
     (weighted, N; at the last accepted load level), load_level (fraction of the loads
     reached, 1 when converged), load_steps (accepted continuation steps), step_failures
     (halvings), status (:class:`~simsoft_jax.status.Status` code: how the solve ended),
-    cause (the reason of the last failed Newton solve, ``NOT_RUN`` if none)."""
+    cause (the reason of the last failed Newton solve, ``NOT_RUN`` if none),
+    tendon_tension (M,) the tendons' tensions (N): as given, or solved for
+    displacement-controlled tendons (:mod:`simsoft_jax.tendon_control`)."""
     R: jax.Array
     p: jax.Array
     converged: jax.Array
@@ -105,6 +107,7 @@ class Equilibrium(NamedTuple):
     step_failures: jax.Array
     status: jax.Array
     cause: jax.Array
+    tendon_tension: jax.Array = None
 
     def message(self) -> str:
         """How the solve ended, in words (concrete, unbatched results)."""
@@ -410,12 +413,25 @@ def _implicit_jvp(tangent, primals, tangents):
 
 def equilibrium(model: Model, settings: StaticSettings, continuation=None) -> Equilibrium:
     """The continuation (default :func:`_continuation`; the batched sweeps pass their
-    flattened one) under the full loads, with the implicit derivative attached."""
+    flattened one) under the full loads, with the implicit derivative attached. With
+    displacement-controlled tendons, their tensions are solved first
+    (:func:`~simsoft_jax.tendon_control.solve_tensions`)."""
     model = full_loads(model)
-    eq = (continuation or _continuation)(jax.lax.stop_gradient(model),
-                                         jax.lax.stop_gradient(settings))
-    R, p = _implicit(settings.tangent, model, eq.converged, eq.R, eq.p)
-    return eq._replace(R=R, p=p)
+
+    def solve(m, st):
+        eq = (continuation or _continuation)(jax.lax.stop_gradient(m),
+                                             jax.lax.stop_gradient(st))
+        R, p = _implicit(st.tangent, m, eq.converged, eq.R, eq.p)
+        return eq._replace(R=R, p=p, tendon_tension=m.tendon_tension)
+
+    if not any(model.structure.tendon_displaced):
+        return solve(model, settings)
+    model, ok = tendon_control.solve_tensions(
+        solve, model, settings, settings.step_tolerance * model.char_length)
+    eq = solve(model, settings)
+    failed = eq.converged & ~ok
+    return eq._replace(converged=eq.converged & ok,
+                       status=jnp.where(failed, Status.MAX_ITERATIONS, eq.status))
 
 
 @jit

@@ -225,6 +225,53 @@ def test_antagonistic_tendons_match_shooting():
     np.testing.assert_allclose(p[NODES], ref, rtol=0, atol=1e-4 * L_SHOOT)
 
 
+# ------------------------------------------------------------------ displacement control
+
+def displaced(elements, delta):
+    scene = actuated(elements)
+    tendon = scene["tendons"][0]
+    del tendon["tension"]
+    tendon["displacement"] = delta
+    return scene
+
+
+def test_displacement_control_gives_the_tension_tension_control_needs():
+    """Straight tendon at offset r shortened by delta: ``Delta l = L (eps + kappa r)``
+    with ``eps = -T/EA``, ``kappa r = -T r^2 / EI``, so ``T = -delta / (L (1/EA +
+    r^2/EI))``; tension control with that T gives the same shape. A lengthened tendon
+    would have to push: its negative tension is reported as slack."""
+    L, r, delta = 0.5, 0.01, -0.005
+    result = sj.run(displaced(6, delta), stability=False)
+    T = -delta / (L * (1.0 / EA + r**2 / EI))
+    assert result.converged and not result.slack_tendons
+    assert result.tendon_tension("t1") == pytest.approx(T, rel=1e-10)
+    assert result.to_dict()["tendons"]["t1"]["tension"] == pytest.approx(T, rel=1e-10)
+    np.testing.assert_allclose(result.positions("arm"), solve(actuated(6, tension=T)),
+                               rtol=0, atol=1e-10)
+    np.testing.assert_allclose(result.positions("arm"), arc(L, 6, T * r / EI, -T / EA),
+                               rtol=0, atol=1e-10)
+    with pytest.warns(UserWarning, match="'t1' would have to push"):
+        slack = sj.run(displaced(6, 0.002), stability=False)
+    assert slack.slack_tendons == ("t1",) and slack.tendon_tension("t1") < 0.0
+    assert "slack" in slack.message
+
+
+@pytest.mark.slow
+def test_displacement_controlled_tension_gradient():
+    """d T / d delta and d T / d EI of the solved tension (implicit function theorem)
+    against the closed form's derivatives."""
+    import jax
+
+    L, r, delta = 0.5, 0.01, -0.005
+    model = sj.build_model(sj.Scene.from_dict(displaced(6, delta)))
+    grad = jax.grad(lambda m: sj.solve_static(m).tendon_tension[0])(model)
+    c = L * (1.0 / EA + r**2 / EI)
+    assert float(grad.tendon_displacement[0]) == pytest.approx(-1.0 / c, rel=1e-8)
+    # T = -delta / c: dT/dEI = -delta L r^2 / (c^2 EI^2), over the 6 elements' EI_y
+    dT_dEI = -delta * L * r**2 / (c**2 * EI**2)
+    assert float(grad.stiffness[:, 4].sum()) == pytest.approx(dT_dEI, rel=1e-8)
+
+
 # ---------------------------------------------------------------- results and the CLI
 
 CLI_SCENE = """
@@ -312,6 +359,7 @@ CHAMBER = {"name": "c1", "rod": "arm", "area": 1e-4, "offset": [0.0, 0.01], "pre
     ("tendons", {"profile": {"kind": "table", "t": [0.0, 1.0], "scale": [1.0, -1.0]}},
      r"tendons\[0\]\.profile: makes the tension negative"),
     ("tendons", {"friction": 0.1}, r"tendons\[0\]\.friction: unknown key"),
+    ("tendons", {"offset": {"radius": 0.01}}, r"tendons\[0\]\.offset\.kind: required"),
     ("chambers", {"area": 0.0}, r"chambers\[0\]\.area: must be > 0"),
     ("chambers", {"rod": "leg"}, r"chambers\[0\]\.rod: no rod named"),
     ("chambers", {"from_node": -1, "to_node": 0}, r"chambers\[0\]\.to_node: must come after"),
@@ -328,8 +376,10 @@ def test_duplicate_tendon_names_are_refused():
         sj.Scene.from_dict(rod_scene(4, tendons=[TENDON, TENDON]))
 
 
-def test_displacement_control_is_refused_until_supported():
+def test_dynamic_displacement_control_is_refused():
     item = {k: v for k, v in TENDON.items() if k != "tension"}
+    scene = rod_scene(4, tendons=[dict(item, displacement=-0.005)])
+    scene["solver"] = {"kind": "dynamic", "dt": 0.01, "t_end": 0.1}
     with pytest.raises(ValueError, match=r"tendons\[0\]\.displacement: displacement control "
-                                         r"is not supported yet"):
-        sj.Scene.from_dict(rod_scene(4, tendons=[dict(item, displacement=-0.005)]))
+                                         r"is supported in static scenes only"):
+        sj.Scene.from_dict(scene)
