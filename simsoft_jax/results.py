@@ -83,7 +83,9 @@ class Result:
     :class:`~simsoft_jax.dynamics.Trajectory`), stability (static only, None when not
     checked (not converged, or ``run(..., stability=False)``):
     ``{"negative_eigenvalues": n, "stable": n == 0}``,
-    :mod:`simsoft_jax.stability`).
+    :mod:`simsoft_jax.stability`), slack_tendons (names of displacement-controlled
+    tendons whose solved tension is negative: they would have to push; also warned and
+    noted in ``message``).
     """
 
     def __init__(self, scene: Scene, model: Model, raw, wall_time_s: float,
