@@ -62,7 +62,10 @@ def compiled_static_solver(model: Model, settings):
     if key in _COMPILED:
         return _COMPILED[key], 0.0
     start = time.perf_counter()
-    out_tree = jax.tree_util.tree_structure(Equilibrium(*[0] * len(Equilibrium._fields)))
+    fields = [0] * len(Equilibrium._fields)
+    fields[Equilibrium._fields.index("tendon_tension")] = (
+        0 if model.structure.tendon_names else None)
+    out_tree = jax.tree_util.tree_structure(Equilibrium(*fields))
     compiled = compile_stored(_solve_static, (model, as_traced(settings)), out_tree,
                               "static")
     _COMPILED[key] = compiled

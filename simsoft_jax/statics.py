@@ -96,7 +96,8 @@ class Equilibrium(NamedTuple):
     (halvings), status (:class:`~simsoft_jax.status.Status` code: how the solve ended),
     cause (the reason of the last failed Newton solve, ``NOT_RUN`` if none),
     tendon_tension (M,) the tendons' tensions (N): as given, or solved for
-    displacement-controlled tendons (:mod:`simsoft_jax.tendon_control`)."""
+    displacement-controlled tendons (:mod:`simsoft_jax.tendon_control`); None when the
+    model has no tendons."""
     R: jax.Array
     p: jax.Array
     converged: jax.Array
@@ -422,7 +423,9 @@ def equilibrium(model: Model, settings: StaticSettings, continuation=None) -> Eq
         eq = (continuation or _continuation)(jax.lax.stop_gradient(m),
                                              jax.lax.stop_gradient(st))
         R, p = _implicit(st.tangent, m, eq.converged, eq.R, eq.p)
-        return eq._replace(R=R, p=p, tendon_tension=m.tendon_tension)
+        # None without tendons (a zero-size output would trouble batched maps)
+        return eq._replace(R=R, p=p, tendon_tension=(m.tendon_tension if
+                                                     m.structure.tendon_names else None))
 
     if not any(model.structure.tendon_displaced):
         return solve(model, settings)
