@@ -43,17 +43,13 @@ def _span(item, path, rods):
     return name, nodes[0], nodes[1]
 
 
-def _offset_yz(value, path):
-    return vector(value, path, 2)
-
-
 def parse_routing(value, path):
     """``offset = [y, z]`` | ``{kind = "helix", radius, pitch, phase_deg}`` |
     ``{kind = "table", s, y, z}`` -> :class:`~simsoft_jax.scene_specs.RoutingSpec`."""
     from .scene_specs import RoutingSpec
 
     if not isinstance(value, dict):
-        y, z = _offset_yz(value, path)
+        y, z = vector(value, path, 2)
         return RoutingSpec("constant", y=float(y), z=float(z))
     t = table(value, path)
     if "kind" not in t:
@@ -79,6 +75,16 @@ def parse_routing(value, path):
                  f"{len(cols[key])}")
     return RoutingSpec("table", s=readonly(s), ys=readonly(cols["y"]),
                        zs=readonly(cols["z"]))
+
+
+def _profile(item, path, parse_profile):
+    """The item's ``profile`` (default constant); a table read from a file is written
+    back inline, so the validated input (``Scene.to_dict``) stays self-contained."""
+    profile = parse_profile(item.get("profile", {"kind": "constant"}), join(path, "profile"))
+    if profile.kind == "table" and "file" in item.get("profile", {}):
+        item["profile"] = {"kind": "table", "t": profile.t.tolist(),
+                           "scale": profile.scale.tolist()}
+    return profile
 
 
 def _check_pulls(profile, path):
@@ -115,9 +121,8 @@ def parse_tendons(items: list, rods: dict, parse_profile, dynamic: bool) -> tupl
             if dynamic:
                 fail(join(path, "displacement"), "displacement control is supported in "
                      "static scenes only (give tension for a dynamic run)")
-        ppath = join(path, "profile")
-        profile = parse_profile(item.get("profile", {"kind": "constant"}), ppath)
-        _check_pulls(profile, ppath)
+        profile = _profile(item, path, parse_profile)
+        _check_pulls(profile, join(path, "profile"))
         out.append(TendonSpec(name=name, rod=rod, from_node=a, to_node=b, routing=routing,
                               tension=tension, displacement=displacement, profile=profile))
     return tuple(out)
@@ -137,8 +142,7 @@ def parse_chambers(items: list, rods: dict, parse_profile) -> tuple:
         out.append(ChamberSpec(
             name=name, rod=rod, from_node=a, to_node=b,
             area=positive(item["area"], join(path, "area")),
-            offset=readonly(_offset_yz(item["offset"], join(path, "offset"))),
+            offset=readonly(vector(item["offset"], join(path, "offset"), 2)),
             pressure=number(item["pressure"], join(path, "pressure")),
-            profile=parse_profile(item.get("profile", {"kind": "constant"}),
-                                  join(path, "profile"))))
+            profile=_profile(item, path, parse_profile)))
     return tuple(out)
