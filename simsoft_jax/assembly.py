@@ -10,7 +10,7 @@ follower distributed loads by ``jax.jacfwd`` in 6 directions) and ``"autodiff"``
 (``jax.jacfwd`` of the sum of the terms in the 12 frame perturbations,
 :mod:`simsoft_jax.terms.autodiff`); both give the same exact tangent. Point loads inside
 elements, tendons and pressure chambers take ``jax.jacfwd`` on both paths
-(:func:`point_load_and_tangent`). They are assembled
+(:func:`jacfwd_terms_and_tangent`). They are assembled
 into a
 block-tridiagonal matrix of 6x6 blocks ``(diag (N,6,6), upper (N-1,6,6), lower (N-1,6,6))``,
 ``upper[i] = K[i, i+1]``, ``lower[i] = K[i+1, i]``. Held dofs get an identity row/column and
@@ -115,7 +115,7 @@ def element_term_and_tangent(model: Model, R, p, term):
     return jax.vmap(one)(*element_poses(model, R, p), element_data(model))
 
 
-def point_load_and_tangent(model: Model, lam, R, p):
+def jacfwd_terms_and_tangent(model: Model, lam, R, p):
     """Nodal forces (E,12) and tangents (E,12,12) of the point loads inside elements
     (:mod:`simsoft_jax.terms.point_in_element`; spec S38) and of the tendons and
     pressure chambers (:mod:`simsoft_jax.terms.tendons`, :mod:`~simsoft_jax.terms.chambers`),
@@ -302,7 +302,7 @@ def residual_and_tangent(model: Model, R, p, lam=1.0, tangent: str = "closed_for
                 dead, follower, rho_a, q_world, q_local)
 
         f_el, k_el = jax.vmap(value_and_jac)(*_element_args(model, R, p))
-        point = point_load_and_tangent(model, lam, R, p)
+        point = jacfwd_terms_and_tangent(model, lam, R, p)
         if point is not None:
             f_el, k_el = f_el + point[0], k_el + point[1]
     r = assemble_vector(s.n_nodes, s.element_nodes, f_el)
