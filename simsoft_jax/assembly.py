@@ -9,7 +9,8 @@ distributed loads and nodal loads in closed form, :func:`element_force_and_tange
 follower distributed loads by ``jax.jacfwd`` in 6 directions) and ``"autodiff"``
 (``jax.jacfwd`` of the sum of the terms in the 12 frame perturbations,
 :mod:`simsoft_jax.terms.autodiff`); both give the same exact tangent. Point loads inside
-elements take ``jax.jacfwd`` on both paths (:func:`point_load_and_tangent`). They are assembled
+elements, tendons and pressure chambers take ``jax.jacfwd`` on both paths
+(:func:`jacfwd_terms_and_tangent`). They are assembled
 into a
 block-tridiagonal matrix of 6x6 blocks ``(diag (N,6,6), upper (N-1,6,6), lower (N-1,6,6))``,
 ``upper[i] = K[i, i+1]``, ``lower[i] = K[i+1, i]``. Held dofs get an identity row/column and
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from . import element, lie
 from .model import Model
@@ -95,40 +97,69 @@ def element_force_and_tangent(P, d, stress, stress_jacobian, RA, length, dead, f
     return f, k
 
 
-def point_load_and_tangent(model: Model, lam, R, p):
-    """Nodal forces (E,12) and left-invariant tangents (E,12,12) of the point loads inside
-    elements (:mod:`simsoft_jax.terms.point_in_element`; spec S38), the tangent by
-    ``jax.jacfwd`` in the 12 right perturbations of the two nodal frames; None when the
-    scene has none."""
-    s = model.structure
-    if not (s.has_point_dead or s.has_point_follower):
-        return None
-    data = element_data(model)
-
+def element_term_and_tangent(model: Model, R, p, term):
+    """Nodal forces (E,12) and left-invariant tangents (E,12,12) of one element term
+    ``term(el, data) -> (12,)`` (:mod:`simsoft_jax.terms`), the tangent by ``jax.jacfwd``
+    in the 12 right perturbations of the two nodal frames."""
     def one(RA, pA, RB, pB, data):
         def f(y):
             RA1, pA1 = lie.compose_exp(RA, pA, y[:6])
             RB1, pB1 = lie.compose_exp(RB, pB, y[6:])
             zero = jnp.zeros(12, RA.dtype)
-            value = point_in_element.force(element_state(RA1, pA1, RB1, pB1, zero, zero),
-                                           data, lam, s.has_point_dead, s.has_point_follower)
+            value = term(element_state(RA1, pA1, RB1, pB1, zero, zero), data)
             return value, value
 
         jac, value = jax.jacfwd(f, has_aux=True)(jnp.zeros(12, RA.dtype))
         return value, jac
 
-    return jax.vmap(one)(*element_poses(model, R, p), data)
+    return jax.vmap(one)(*element_poses(model, R, p), element_data(model))
+
+
+def jacfwd_terms_and_tangent(model: Model, lam, R, p):
+    """Nodal forces (E,12) and tangents (E,12,12) of the point loads inside elements
+    (:mod:`simsoft_jax.terms.point_in_element`; spec S38) and of the tendons and
+    pressure chambers (:mod:`simsoft_jax.terms.tendons`, :mod:`~simsoft_jax.terms.chambers`),
+    by :func:`element_term_and_tangent`; None when the scene has none."""
+    s = model.structure
+    point = s.has_point_dead or s.has_point_follower
+    actuators = term_tangents.actuator_residual(s, lam)
+    if not point and actuators is None:
+        return None
+
+    def term(el, data):
+        r = jnp.zeros(12, el.d.dtype)
+        if point:
+            r = r + point_in_element.force(el, data, lam, s.has_point_dead,
+                                           s.has_point_follower)
+        if actuators is not None:
+            r = r + actuators(el, data)
+        return r
+
+    return element_term_and_tangent(model, R, p, term)
 
 
 def element_data(model: Model, maps=None, masses=None) -> ElementData:
     """The per-element model arrays (E, ...) of :class:`~simsoft_jax.terms.ElementData`
     (``maps``, ``masses``: element inertia in dynamics, None in statics)."""
     n = model.length.shape[0]
+    s = model.structure
+    actuators = {}
+    if s.tendon_names:
+        member = jnp.asarray(np.array(s.tendon_elements, float))           # (M, E)
+        actuators.update(tendon_tension=(member * model.tendon_tension[:, None]).T,
+                         tendon_offset=jnp.swapaxes(model.tendon_offset, 0, 1),
+                         tendon_slope=jnp.swapaxes(model.tendon_slope, 0, 1))
+    if s.chamber_names:
+        member = jnp.asarray(np.array(s.chamber_elements, float))          # (C, E)
+        force = model.chamber_pressure * model.chamber_area
+        actuators.update(chamber_force=(member * force[:, None]).T,
+                         chamber_offset=jnp.broadcast_to(model.chamber_offset,
+                                                         (n,) + model.chamber_offset.shape))
     return ElementData(model.d0, model.length, model.stiffness, model.inertia,
                        model.viscosity, model.distributed_world, model.distributed_local,
                        jnp.broadcast_to(model.gravity, (n, 3)), maps, masses,
                        model.element_point_dead, model.element_point_follower,
-                       model.element_point_xi, model.mass_damping)
+                       model.element_point_xi, model.mass_damping, **actuators)
 
 
 def element_poses(model: Model, R, p):
@@ -271,7 +302,7 @@ def residual_and_tangent(model: Model, R, p, lam=1.0, tangent: str = "closed_for
                 dead, follower, rho_a, q_world, q_local)
 
         f_el, k_el = jax.vmap(value_and_jac)(*_element_args(model, R, p))
-        point = point_load_and_tangent(model, lam, R, p)
+        point = jacfwd_terms_and_tangent(model, lam, R, p)
         if point is not None:
             f_el, k_el = f_el + point[0], k_el + point[1]
     r = assemble_vector(s.n_nodes, s.element_nodes, f_el)

@@ -67,11 +67,17 @@ def profile_scale(kind: str, params, table_t, table_scale, t):
     raise ValueError(f"profile.kind: unknown kind {kind!r}")
 
 
+def law_scales(kinds, params, table_t, table_scale, t):
+    """Scale factors (K,) at time ``t`` of K time laws: ``kinds`` (static tuple),
+    ``params`` (K,3), ``table_t``, ``table_scale`` (K,S) (see :func:`profile_tables`)."""
+    return jnp.stack([profile_scale(k, params[i], table_t[i], table_scale[i], t)
+                      for i, k in enumerate(kinds)]) if kinds else jnp.zeros(0)
+
+
 def scales(channels: LoadChannels, t):
     """Scale factors (K,) of all channels at time ``t``."""
-    return jnp.stack([profile_scale(k, channels.params[i], channels.table_t[i],
-                                    channels.table_scale[i], t)
-                      for i, k in enumerate(channels.kinds)]) if channels.kinds else jnp.zeros(0)
+    return law_scales(channels.kinds, channels.params, channels.table_t,
+                      channels.table_scale, t)
 
 
 def _with_channels(model, s):
@@ -89,16 +95,69 @@ def _with_channels(model, s):
                                                     ch.element_point_follower))
 
 
+@dataclasses.dataclass(frozen=True)
+class TimeLaws:
+    """K time laws of actuators (tendon tensions, chamber pressures): ``kinds`` static
+    tuple of profile kinds, ``params`` (K,3), ``table_t``, ``table_scale`` (K,S)
+    (:func:`profile_tables`)."""
+    kinds: tuple
+    params: jax.Array
+    table_t: jax.Array
+    table_scale: jax.Array
+
+    def scales(self, t):
+        """Scale factors (K,) at time ``t`` (s)."""
+        return law_scales(self.kinds, self.params, self.table_t, self.table_scale, t)
+
+
+jax.tree_util.register_dataclass(TimeLaws, data_fields=["params", "table_t", "table_scale"],
+                                 meta_fields=["kinds"])
+
+
+def build_laws(profiles) -> TimeLaws:
+    """:class:`TimeLaws` of a list of ProfileSpec."""
+    return TimeLaws(tuple(p.kind for p in profiles),
+                    *(jnp.asarray(a, jnp.float64) for a in profile_tables(profiles)))
+
+
 def loads_at(model, t):
     """``model`` with its load arrays holding the total loads at time ``t`` (s): the
-    constant ones plus every channel at its scale ``scale_k(t)``."""
-    return _with_channels(model, scales(model.channels, t))
+    constant ones plus every channel at its scale ``scale_k(t)``; tendon tensions and
+    chamber pressures times their time laws."""
+    model = _with_channels(model, scales(model.channels, t))
+    changes = {}
+    if model.structure.tendon_names:
+        changes["tendon_tension"] = model.tendon_tension * model.tendon_law.scales(t)
+    if model.structure.chamber_names:
+        changes["chamber_pressure"] = model.chamber_pressure * model.chamber_law.scales(t)
+    return model.replace(**changes) if changes else model
 
 
 def full_loads(model):
     """``model`` with its load arrays holding every load at full scale (each channel's
     pattern once), as statics applies them."""
     return _with_channels(model, jnp.ones(len(model.channels.kinds)))
+
+
+def profile_tables(profiles):
+    """Arrays of K time laws (:class:`~simsoft_jax.scene_specs.ProfileSpec`): params
+    (K,3) ``t0, t1, rate`` and tables ``table_t``, ``table_scale`` (K,S) padded with
+    increasing times beyond the last sample, holding the last value (NumPy)."""
+    k = len(profiles)
+    params = np.tile([0.0, 1.0, 0.0], (k, 1))
+    width = max([2] + [len(p.t) for p in profiles if p.kind == "table"])
+    table_t = np.tile(np.arange(width, dtype=float), (k, 1))
+    table_scale = np.zeros((k, width))
+    for i, prof in enumerate(profiles):
+        if prof.kind in ("ramp", "smoothstep"):
+            params[i, :2] = prof.t0, prof.t1
+        elif prof.kind == "linear":
+            params[i, 2] = prof.rate
+        elif prof.kind == "table":
+            m = len(prof.t)
+            table_t[i] = np.concatenate([prof.t, prof.t[-1] + 1.0 + np.arange(width - m)])
+            table_scale[i] = np.concatenate([prof.scale, np.full(width - m, prof.scale[-1])])
+    return params, table_t, table_scale
 
 
 def build_channels(loads, structure) -> LoadChannels:
@@ -109,10 +168,7 @@ def build_channels(loads, structure) -> LoadChannels:
     dead, follower = np.zeros((k, n, 6)), np.zeros((k, n, 6))
     dist_world, dist_local = np.zeros((k, e, 3)), np.zeros((k, e, 3))
     point_dead, point_follower = np.zeros((k, e, 6)), np.zeros((k, e, 6))
-    params = np.tile([0.0, 1.0, 0.0], (max(k, 0), 1))
-    width = max([2] + [len(ld.profile.t) for ld in loads if ld.profile.kind == "table"])
-    table_t = np.tile(np.arange(width, dtype=float), (k, 1))
-    table_scale = np.zeros((k, width))
+    params, table_t, table_scale = profile_tables([ld.profile for ld in loads])
     for i, load in enumerate(loads):
         info = rods[load.rod]
         if load.kind == "distributed_force":
@@ -126,16 +182,6 @@ def build_channels(loads, structure) -> LoadChannels:
             target = dead if load.frame == "world" else follower
             cols = slice(0, 3) if load.kind == "force" else slice(3, 6)
             target[i, info.first_node + load.node, cols] = load.vector
-        prof = load.profile
-        if prof.kind in ("ramp", "smoothstep"):
-            params[i, :2] = prof.t0, prof.t1
-        elif prof.kind == "linear":
-            params[i, 2] = prof.rate
-        elif prof.kind == "table":
-            m = len(prof.t)
-            # pad with increasing times beyond the last sample, holding the last value
-            table_t[i] = np.concatenate([prof.t, prof.t[-1] + 1.0 + np.arange(width - m)])
-            table_scale[i] = np.concatenate([prof.scale, np.full(width - m, prof.scale[-1])])
     f64 = lambda a: jnp.asarray(a, jnp.float64)  # noqa: E731
     return LoadChannels(tuple(ld.profile.kind for ld in loads), f64(params),
                         f64(table_t), f64(table_scale), f64(dead), f64(follower),

@@ -27,9 +27,10 @@ import numpy as np
 
 from . import geometry as geom
 from . import lie
+from .actuator_tables import chamber_arrays, tendon_arrays
 from .joint_layout import layout as joint_layout
+from .loads import LoadChannels, TimeLaws, build_channels, build_laws
 from .scene_mechanisms import jointed_rods
-from .loads import LoadChannels, build_channels
 from .sections import inertia_diagonal, stiffness_diagonal, viscosity_diagonal
 from .supports import AXES, unheld_message
 
@@ -70,6 +71,12 @@ class Structure:
     coupling_nodes: tuple = ()    # nodes solved in the coupling set: the bodies, then
                                   # rod nodes of joints (simsoft_jax.mechanisms)
     joints: tuple = ()            # (kind, node a, node b) per joint ("weld" | "ball")
+    tendon_names: tuple = ()      # name of each tendon ([[tendons]])
+    tendon_elements: tuple = ()   # per tendon, E bools: the elements it passes
+    tendon_quadrature: int = 1    # Gauss points per element of the tendon length
+    tendon_displaced: tuple = ()  # per tendon: True when displacement-controlled
+    chamber_names: tuple = ()     # name of each pressure chamber ([[chambers]])
+    chamber_elements: tuple = ()  # per chamber, E bools: the elements it spans
 
     @property
     def n_elements(self) -> int:
@@ -121,6 +128,14 @@ class Model:
     nodes a and b (m); joint_rotation (J,3,3): the relative rotation ``R_a^T R_b`` a weld
     keeps (:mod:`simsoft_jax.terms.joints`). Rigid bodies are nodes after the rods' nodes
     (``structure.body_nodes``), their mass and inertia attached masses.
+    tendon_tension (M,) N, tendon_displacement (M,) m (prescribed length change of a
+    displacement-controlled tendon), tendon_offset, tendon_slope (M,E,Q,2): the routing
+    ``(y, z)`` (m, section frame) and ``d(y, z)/ds`` at the Q Gauss points of every
+    element (zeros where the tendon does not pass, ``structure.tendon_elements``),
+    tendon_law (:class:`~simsoft_jax.loads.TimeLaws`) the tension time laws
+    (:mod:`simsoft_jax.terms.tendons`, :mod:`simsoft_jax.actuator_tables`). chamber_pressure
+    (C,) Pa, chamber_area (C,) m^2, chamber_offset (C,2) m, chamber_law: pressure
+    chambers (:mod:`simsoft_jax.terms.chambers`).
     """
     structure: Structure
     R0: jax.Array
@@ -154,6 +169,15 @@ class Model:
     joint_offset_a: jax.Array
     joint_offset_b: jax.Array
     joint_rotation: jax.Array
+    tendon_tension: jax.Array
+    tendon_displacement: jax.Array
+    tendon_offset: jax.Array
+    tendon_slope: jax.Array
+    tendon_law: TimeLaws
+    chamber_pressure: jax.Array
+    chamber_area: jax.Array
+    chamber_offset: jax.Array
+    chamber_law: TimeLaws
 
     def replace(self, **changes) -> "Model":
         """A copy with some arrays replaced (same structure: no recompilation)."""
@@ -393,6 +417,8 @@ def build_model(scene) -> Model:
     for load in loads:
         if load.element is not None:
             point_xi[by_name[load.rod].first_element + load.element] = load.xi
+    tendons, tendon_data = tendon_arrays(scene, by_name, n_elements)
+    chambers, chamber_data = chamber_arrays(scene, by_name, n_elements)
     at_node = [ld for ld in loads if ld.kind != "distributed_force" and ld.element is None]
     inside = [ld for ld in loads if ld.element is not None]
     structure = Structure(
@@ -416,6 +442,7 @@ def build_model(scene) -> Model:
         joints=joints.joints,
         mass_nodes=tuple(m.node for m in masses),
         offset_load_nodes=tuple(by_name[ld.rod].first_node + ld.node for ld in offset_loads),
+        **tendons, **chambers,
     )
     arrays = dict(
         R0=R0, p0=p0, d0=d0, length=length, stiffness=K,
@@ -432,7 +459,10 @@ def build_model(scene) -> Model:
         offset_force=np.reshape([ld.vector for ld in offset_loads], (-1, 3)),
         offset_point=np.reshape([ld.offset for ld in offset_loads], (-1, 3)),
         joint_offset_a=joints.offset_a, joint_offset_b=joints.offset_b,
-        joint_rotation=joints.rotation)
+        joint_rotation=joints.rotation, **tendon_data, **chamber_data)
     # one batched transfer (a device_put per array costs more than the arrays' numbers)
     arrays = jax.device_put({k: np.asarray(a, np.float64) for k, a in arrays.items()})
-    return Model(structure=structure, channels=build_channels(timed, structure), **arrays)
+    return Model(structure=structure, channels=build_channels(timed, structure),
+                 tendon_law=build_laws([t.profile for t in getattr(scene, "tendons", ())]),
+                 chamber_law=build_laws([c.profile for c in getattr(scene, "chambers", ())]),
+                 **arrays)

@@ -11,9 +11,11 @@ from __future__ import annotations
 import collections
 import json
 import time
+import warnings
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from . import compile_cache
@@ -60,9 +62,10 @@ def compiled_static_solver(model: Model, settings):
     if key in _COMPILED:
         return _COMPILED[key], 0.0
     start = time.perf_counter()
-    joints = 0 if model.structure.joints else None   # multipliers only with joints
-    out_tree = jax.tree_util.tree_structure(
-        Equilibrium(*[0] * (len(Equilibrium._fields) - 1), joints))
+    fields = dict.fromkeys(Equilibrium._fields, 0)
+    fields["tendon_tension"] = 0 if model.structure.tendon_names else None
+    fields["multipliers"] = 0 if model.structure.joints else None
+    out_tree = jax.tree_util.tree_structure(Equilibrium(**fields))
     compiled = compile_stored(_solve_static, (model, as_traced(settings)), out_tree,
                               "static")
     _COMPILED[key] = compiled
@@ -83,7 +86,9 @@ class Result:
     :class:`~simsoft_jax.dynamics.Trajectory`), stability (static only, None when not
     checked (not converged, or ``run(..., stability=False)``):
     ``{"negative_eigenvalues": n, "stable": n == 0}``,
-    :mod:`simsoft_jax.stability`).
+    :mod:`simsoft_jax.stability`), slack_tendons (names of displacement-controlled
+    tendons whose solved tension is negative: they would have to push; also warned and
+    noted in ``message``).
     """
 
     def __init__(self, scene: Scene, model: Model, raw, wall_time_s: float,
@@ -111,6 +116,22 @@ class Result:
             self.failed_at = None
         self._R = np.asarray(raw.R)
         self._p = np.asarray(raw.p)
+        self.slack_tendons = self._slack_tendons()
+        if self.slack_tendons:
+            note = (f"tendon{'s' * (len(self.slack_tendons) > 1)} "
+                    f"{', '.join(map(repr, self.slack_tendons))} would have to push "
+                    "(negative tension): slack, the solved shape is not physical")
+            self.message += f"; {note}"
+            warnings.warn(note, stacklevel=2)
+
+    def _slack_tendons(self) -> tuple:
+        """Names of the displacement-controlled tendons whose solved tension is below 0."""
+        s = self.model.structure
+        if self.time is not None or not any(s.tendon_displaced):
+            return ()
+        return tuple(n for n, flag, t in zip(s.tendon_names, s.tendon_displaced,
+                                             np.asarray(self.raw.tendon_tension))
+                     if flag and t < 0.0)
 
     def _nodes(self, rod: str) -> slice:
         info = self.model.structure.rod(rod)
@@ -141,6 +162,19 @@ class Result:
             raise ValueError(f"body: no body named {name!r} (known: "
                              f"{', '.join(nodes) or 'none'})")
         return self._p[..., nodes[name], :].copy(), self._R[..., nodes[name], :, :].copy()
+    def tendon_tension(self, name: str):
+        """Tension (N) of the tendon ``name``: a float for a static result, (T,) at the
+        saved times for a dynamic one (its tension times its time law)."""
+        s = self.model.structure
+        if name not in s.tendon_names:
+            raise ValueError(f"tendon_tension: no tendon named {name!r} (known: "
+                             f"{', '.join(s.tendon_names) or 'none'})")
+        m = s.tendon_names.index(name)
+        if self.time is None:   # solved for displacement-controlled tendons
+            return float(self.raw.tendon_tension[m])
+        tension = float(self.model.tendon_tension[m])
+        law = self.model.tendon_law
+        return tension * np.asarray(jax.vmap(law.scales)(jnp.asarray(self.time)))[:, m]
 
     def to_dict(self) -> dict:
         """The result-file layout of the scene-format contract (plain Python types);
@@ -161,6 +195,9 @@ class Result:
         if self.model.structure.bodies:
             d["bodies"] = {name: dict(zip(("position", "rotation"), self.body_pose(name)))
                            for name, _ in self.model.structure.bodies}
+        if self.model.structure.tendon_names:
+            d["tendons"] = {name: {"tension": self.tendon_tension(name)}
+                            for name in self.model.structure.tendon_names}
         if self.time is not None:
             d["time"] = self.time
         else:  # static: None when not checked (not converged, or skipped)
@@ -178,9 +215,10 @@ class Result:
     def save(self, path) -> Path:
         """Write the result as ``.json`` (contract layout, strict JSON: no NaN/Infinity)
         or ``.npz`` (same keys; per-rod arrays as ``<rod>/positions``, ``<rod>/rotations``
-        and, dynamic, ``<rod>/velocities``). The file is written to a temporary name in
-        the same folder and renamed: a failed or interrupted write leaves the old file
-        (or none), never a partial one. An existing file is replaced."""
+        and, dynamic, ``<rod>/velocities``; tendon tensions as
+        ``tendons/<name>/tension``). The file is written to a temporary name in the same
+        folder and renamed: a failed or interrupted write leaves the old file (or none),
+        never a partial one. An existing file is replaced."""
         path = Path(path)
         if path.suffix == ".json":
             # one line per top-level key: JSON's C encoder (an indent would use its
@@ -193,11 +231,13 @@ class Result:
             raise ValueError(f"output: unsupported suffix {path.suffix!r} (use .json or .npz)")
         d = self.to_dict()
         arrays = {k: np.asarray(v) for k, v in d.items()
-                  if k not in ("rods", "bodies", "failed_at", "time", "stability")
-                  and v is not None}
+                  if k not in ("rods", "bodies", "failed_at", "time", "stability",
+                               "tendons") and v is not None}
         for name, pose in d.get("bodies", {}).items():
             arrays[f"bodies/{name}/position"] = np.asarray(pose["position"])
             arrays[f"bodies/{name}/rotation"] = np.asarray(pose["rotation"])
+        for name in self.model.structure.tendon_names:
+            arrays[f"tendons/{name}/tension"] = np.asarray(self.tendon_tension(name))
         if self.stability is not None:
             arrays["stability/negative_eigenvalues"] = self.stability["negative_eigenvalues"]
         if self.time is not None:

@@ -23,6 +23,7 @@ from ._validate import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, fa
                         readonly, require, rodrigues, rotation_vector, string, table,
                         toml_document, vector)
 from .materials import BUILTIN_MATERIALS, Material, get_material
+from .scene_actuators import parse_chambers, parse_tendons
 from .scene_attachments import parse_masses, parse_offset, parse_stiffness
 from .scene_mechanisms import check_mechanism, jointed_rods, parse_bodies, parse_joints
 from .scene_initial import parse_initial
@@ -53,6 +54,8 @@ class Scene(SpecBase):
     masses: tuple = ()                # MassSpec per [[masses]] entry
     bodies: tuple = ()                # BodySpec per [[bodies]] entry
     joints: tuple = ()                # JointSpec per [[joints]] entry
+    tendons: tuple = ()               # TendonSpec per [[tendons]] entry
+    chambers: tuple = ()              # ChamberSpec per [[chambers]] entry
 
     @classmethod
     def from_dict(cls, d: dict, base_dir: str | Path | None = None) -> "Scene":
@@ -79,7 +82,7 @@ class Scene(SpecBase):
 # ----------------------------------------------------------------------------- parsing
 
 _TOP_KEYS = ("name", "solver", "gravity", "materials", "rods", "constraints", "loads",
-             "initial_velocity", "masses", "bodies", "joints")
+             "initial_velocity", "masses", "bodies", "joints", "tendons", "chambers")
 _SOLVER_KEYS = ("kind", "tolerance", "max_iterations", "load_steps", "t_end", "dt",
                 "rho_inf", "save_every", "inertia", "tangent", "max_steps")
 _MATERIAL_KEYS = ("name", "E", "G", "nu", "density", "viscosity", "mass_damping")
@@ -142,6 +145,10 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
     bodies = parse_bodies(_array_of_tables(raw, "bodies"), rods)
     joints = parse_joints(_array_of_tables(raw, "joints"), rods, bodies, _node)
     check_mechanism(solver.kind, bodies, joints)
+    profile = lambda value, path: _parse_profile(value, path, base_dir)  # noqa: E731
+    tendons = parse_tendons(_array_of_tables(raw, "tendons"), rods, profile,
+                            solver.kind == "dynamic")
+    chambers = parse_chambers(_array_of_tables(raw, "chambers"), rods, profile)
     if solver.kind == "dynamic":
         warn_short_features(loads, constraints, solver.dt)
     check_loads_on_held_nodes(raw.get("loads", []), loads, constraints)
@@ -167,7 +174,8 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
                 raise ValueError(message)
     return Scene(name=name, solver=solver, gravity=gravity, rods=tuple(rods.values()),
                  constraints=constraints, loads=loads, initial_velocity=velocities,
-                 source=None, raw=raw, masses=masses, bodies=bodies, joints=joints)
+                 source=None, raw=raw, masses=masses, bodies=bodies, joints=joints,
+                 tendons=tendons, chambers=chambers)
 
 
 def _parse_solver(value: Any) -> SolverSettings:

@@ -166,3 +166,45 @@ class JointSpec(SpecBase):
     kind: str
     a: JointEnd
     b: JointEnd
+class RoutingSpec(SpecBase):
+    """A tendon's path in the section frame (m): ``kind`` "constant" (``y``, ``z``),
+    "helix" (``radius``, ``pitch``, ``phase_deg``; ``theta = phase + 2 pi s / pitch``),
+    or "table" (``s``, ``ys``, ``zs`` sampled along the rod's arc length s, linear in
+    between, held constant outside)."""
+    kind: str
+    y: float = 0.0
+    z: float = 0.0
+    radius: float | None = None
+    pitch: float | None = None
+    phase_deg: float = 0.0
+    s: np.ndarray | None = None
+    ys: np.ndarray | None = None
+    zs: np.ndarray | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class TendonSpec(SpecBase):
+    """A tendon (``[[tendons]]``) from ``from_node`` to ``to_node`` (non-negative,
+    from < to) of a rod; exactly one of ``tension`` (N) and ``displacement`` (m)."""
+    name: str
+    rod: str
+    from_node: int
+    to_node: int
+    routing: RoutingSpec
+    tension: float | None
+    displacement: float | None
+    profile: ProfileSpec
+
+
+@dataclass(frozen=True, eq=False)
+class ChamberSpec(SpecBase):
+    """A pressure chamber (``[[chambers]]``): ``area`` (m^2), centroid ``offset`` (2,)
+    (y, z; m, section frame), ``pressure`` (Pa) scaled by ``profile``."""
+    name: str
+    rod: str
+    from_node: int
+    to_node: int
+    area: float
+    offset: np.ndarray
+    pressure: float
+    profile: ProfileSpec

@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import lie, mechanisms
+from . import lie, mechanisms, tendon_control
 from ._xla import jit
 from .assembly import check_tangent, residual, residual_and_tangent
 from .linalg import (block_solve, factorize_coupled, implicit_solve, implicit_solve_coupled,
@@ -96,7 +96,10 @@ class Equilibrium(NamedTuple):
     reached, 1 when converged), load_steps (accepted continuation steps), step_failures
     (halvings), status (:class:`~simsoft_jax.status.Status` code: how the solve ended),
     cause (the reason of the last failed Newton solve, ``NOT_RUN`` if none), multipliers
-    (M,): the joint multipliers (:mod:`~simsoft_jax.mechanisms`; None without joints)."""
+    (M,): the joint multipliers (:mod:`~simsoft_jax.mechanisms`; None without joints),
+    tendon_tension (M,) the tendons' tensions (N): as given, or solved for
+    displacement-controlled tendons (:mod:`simsoft_jax.tendon_control`); None when the
+    model has no tendons."""
     R: jax.Array
     p: jax.Array
     converged: jax.Array
@@ -108,6 +111,7 @@ class Equilibrium(NamedTuple):
     status: jax.Array
     cause: jax.Array
     multipliers: jax.Array | None = None
+    tendon_tension: jax.Array | None = None
 
     def message(self) -> str:
         """How the solve ended, in words (concrete, unbatched results)."""
@@ -164,6 +168,13 @@ def load_scale(model: Model):
         total = total + jnp.sum(w ** 2) + jnp.sum(
             (jnp.linalg.norm(model.mass_offset, axis=1) * jnp.linalg.norm(w, axis=1)
              / model.char_length) ** 2)
+    if s.tendon_names:   # tendon tensions and the moments they make at their offsets
+        r = jnp.max(jnp.linalg.norm(model.tendon_offset, axis=-1), axis=(1, 2))
+        total = total + jnp.sum(model.tendon_tension ** 2 * (1.0 + (r / model.char_length) ** 2))
+    if s.chamber_names:  # pressure times area, and its moment at the chamber's offset
+        r = jnp.linalg.norm(model.chamber_offset, axis=-1)
+        f = model.chamber_pressure * model.chamber_area
+        total = total + jnp.sum(f ** 2 * (1.0 + (r / model.char_length) ** 2))
     return jnp.sqrt(total)
 
 
@@ -448,15 +459,30 @@ def _implicit_jvp(tangent, primals, tangents):
 
 def equilibrium(model: Model, settings: StaticSettings, continuation=None) -> Equilibrium:
     """The continuation (default :func:`_continuation`; the batched sweeps pass their
-    flattened one) under the full loads, with the implicit derivative attached."""
+    flattened one) under the full loads, with the implicit derivative attached. With
+    displacement-controlled tendons, their tensions are solved first
+    (:func:`~simsoft_jax.tendon_control.solve_tensions`)."""
     model = full_loads(model)
-    eq = (continuation or _continuation)(jax.lax.stop_gradient(model),
-                                         jax.lax.stop_gradient(settings))
-    if eq.multipliers is None:       # no joints
-        R, p, _ = _implicit(settings.tangent, model, eq.converged, eq.R, eq.p, jnp.zeros(0))
-        return eq._replace(R=R, p=p)
-    R, p, y = _implicit(settings.tangent, model, eq.converged, eq.R, eq.p, eq.multipliers)
-    return eq._replace(R=R, p=p, multipliers=y)
+
+    def solve(m, st):
+        eq = (continuation or _continuation)(jax.lax.stop_gradient(m),
+                                             jax.lax.stop_gradient(st))
+        # None without tendons (a zero-size output would trouble batched maps)
+        tension = m.tendon_tension if m.structure.tendon_names else None
+        if eq.multipliers is None:       # no joints
+            R, p, _ = _implicit(st.tangent, m, eq.converged, eq.R, eq.p, jnp.zeros(0))
+            return eq._replace(R=R, p=p, tendon_tension=tension)
+        R, p, y = _implicit(st.tangent, m, eq.converged, eq.R, eq.p, eq.multipliers)
+        return eq._replace(R=R, p=p, multipliers=y, tendon_tension=tension)
+
+    if not any(model.structure.tendon_displaced):
+        return solve(model, settings)
+    model, ok = tendon_control.solve_tensions(
+        solve, model, settings, settings.step_tolerance * model.char_length)
+    eq = solve(model, settings)
+    failed = eq.converged & ~ok
+    return eq._replace(converged=eq.converged & ok,
+                       status=jnp.where(failed, Status.MAX_ITERATIONS, eq.status))
 
 
 @jit

@@ -57,6 +57,7 @@ FIGURES = {
     "calibrate_princeton": ["calibration.png"],
     "dynamic_identification": ["tip_fit.png"],
     "princeton_sweep": ["tip_deflection_map.png"],
+    "tendon_actuation": ["tendon_arcs.png"],
 }
 
 
@@ -67,7 +68,7 @@ FIGURES = {
 LANES = (("helical_motion", "spring_steel_rod", "silicone_body", "pure_bending",
           "princeton_replay", "calibrate_princeton"),
          ("free_planar_rotation", "magellan_catheter", "bending_actuator",
-          "dynamic_identification", "princeton_sweep"))
+          "dynamic_identification", "princeton_sweep", "tendon_actuation"))
 CACHE_NAMES = ("jax_compilation_cache", "jax_compilation_cache_lane1")
 
 
@@ -129,6 +130,20 @@ def test_pure_bending(examples):
     assert s["max_position_error_rel"] < 1e-8
     assert s["max_rotation_error"] < 1e-8
     assert s["max_interpolation_error_rel"] < 1e-8
+
+
+def test_tendon_actuation(examples):
+    """Straight tendon (tension T at z = r) and chamber (P A at z = -r): exact arcs of
+    curvature ``T r / EI`` (strain ``-T/EA``) and ``P A r / EI`` (strain ``+P A / EA``)."""
+    s, _ = examples["tendon_actuation"].result()
+    assert s["converged"]
+    L, EA, EI, r, A = s["length_m"], s["EA_N"], s["EI_Nm2"], s["offset_m"], s["area_m2"]
+    loads = [(T * r / EI, -T / EA) for T in s["tensions_N"]] + [
+        (P * A * r / EI, P * A / EA) for P in s["pressures_Pa"]]
+    for (k, eps), tip in zip(loads, s["tips_m"], strict=True):
+        exact = (1 + eps) * np.array([math.sin(k * L) / k, 0.0, (1 - math.cos(k * L)) / k])
+        assert np.linalg.norm(np.subtract(tip, exact)) < 1e-10 * L
+    assert s["max_error_rel"] < 1e-10
 
 
 # ------------------------------------------------------------------------------ dynamics

@@ -22,7 +22,8 @@ ROD = {"name": "arm", "elements": 4, "geometry": {"kind": "arc", "radius": 1.5, 
 
 def dynamic_scene(**changes):
     """A curved rod with every kind of load and time law, viscosity and mass-proportional
-    damping, an attached mass at an offset, an initial velocity and a driven base (a rotation table). No time-law sample falls on a step time (the
+    damping, an attached mass at an offset, a helical tendon over part of the rod and a
+    pressure chamber, an initial velocity and a driven base (a rotation table). No time-law sample falls on a step time (the
     laws are piecewise linear: a kink on a step would make finite differences in the
     sample times one-sided)."""
     rod = dict(ROD, **changes.pop("rod", {}))
@@ -48,6 +49,13 @@ def dynamic_scene(**changes):
         "initial_velocity": [{"rod": "arm", "linear": [0, 0, 0], "angular": [0.0, 0.3, 0.2]}],
         "masses": [{"rod": "arm", "node": -1, "mass": 0.05, "offset": [0.0, 0.02, 0.01],
                     "inertia": [[2e-5, 0, 0], [0, 1e-5, 0], [0, 0, 1.5e-5]]}],
+        "tendons": [{"name": "t1", "rod": "arm", "from_node": 0, "to_node": 3,
+                     "offset": {"kind": "helix", "radius": 0.01, "pitch": 0.8,
+                                "phase_deg": 30.0}, "tension": 0.5,
+                     "profile": {"kind": "ramp", "t0": 0.003, "t1": 0.305}}],
+        "chambers": [{"name": "c1", "rod": "arm", "area": 1e-4, "offset": [0.01, -0.005],
+                      "pressure": 2e3, "profile": {"kind": "table", "t": [0.002, 0.505],
+                                                   "scale": [0.2, 1.0]}}],
     }
     scene.update(changes)
     return scene
@@ -165,8 +173,9 @@ def test_static_gradient_over_every_model_leaf():
 
     moved = _check_every_leaf(model, scalar)
     assert {"stiffness", "d0", "length", "inertia", "gravity", "nodal_dead", "nodal_follower",
-            "distributed_world", "channels.nodal_dead", "channels.distributed_local"
-            } <= set(moved), moved
+            "distributed_world", "channels.nodal_dead", "channels.distributed_local",
+            "tendon_tension", "tendon_offset", "tendon_slope", "chamber_pressure",
+            "chamber_area", "chamber_offset"} <= set(moved), moved
 
 
 @pytest.mark.slow
@@ -186,7 +195,8 @@ def test_rollout_gradient_over_every_model_leaf():
             "nodal_dead", "nodal_follower", "distributed_world", "channels.params",
             "channels.table_scale", "channels.nodal_dead", "channels.distributed_local",
             "drive_rotation", "drive_displacement", "mass_damping", "mass", "mass_offset",
-            "mass_inertia"} <= set(moved), moved
+            "mass_inertia", "tendon_tension", "tendon_offset", "tendon_law.params",
+            "chamber_pressure", "chamber_law.table_scale"} <= set(moved), moved
 
 
 class _CompileCounter(logging.Handler):

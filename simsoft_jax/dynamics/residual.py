@@ -5,9 +5,9 @@ S61, S66), from vmapped element kernels.
 :mod:`simsoft_jax.terms`, with the exact iteration matrix
 ``M beta' + C_t gamma' + K_t T_SE3(w)`` built from element blocks, assembled into a
 block-tridiagonal matrix. Element blocks by the ``tangent`` path: "closed_form"
-(closed-form stress and dead-load tangents, ``jacfwd`` of the gyroscopic, follower-load
-and in-element point-load terms) or "autodiff" (``jax.jacfwd`` of the sum of the element
-terms in the frame perturbations, velocities and accelerations). Element inertia (field
+(closed-form stress and dead-load tangents, ``jacfwd`` of the gyroscopic, follower-load,
+in-element point-load, tendon and chamber terms) or "autodiff" (``jax.jacfwd`` of the
+sum of the element terms in the frame perturbations, velocities and accelerations). Element inertia (field
 maps and mass matrices) is computed from the Model's sectional inertia inside the trace
 (:func:`element_inertia`), so a changed ``model.inertia`` changes everything it should,
 gradients included.
@@ -24,7 +24,7 @@ from ..assembly import (_nodal_load, apply_constraints, assemble_blocks, assembl
                         dead_distributed_force, element_data, element_force_and_tangent,
                         element_poses, follower_distributed_load, nodal_load_and_tangent,
                         attachments_and_tangents,
-                        point_load_and_tangent)
+                        jacfwd_terms_and_tangent)
 from ..drives import reduce, slide_maps
 from ..loads import loads_at
 from ..model import Model
@@ -120,7 +120,7 @@ def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p,
     else:
         f_el, K_el, C_el, M_el = jax.vmap(value_and_blocks)(
             *_element_args(model, inert, R, p, v, vd))
-        point = point_load_and_tangent(model, 1.0, R, p)
+        point = jacfwd_terms_and_tangent(model, 1.0, R, p)
         if point is not None:
             f_el, K_el = f_el + point[0], K_el + point[1]
     TA, TB = T[a], T[a + 1]

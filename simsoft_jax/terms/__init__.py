@@ -41,7 +41,10 @@ class ElementData(NamedTuple):
     (G,6,12) and mass (12,12) (dynamics; see :mod:`simsoft_jax.inertia`), point_dead,
     point_follower (6,) a point load inside the element at point_xi ()
     (:mod:`.point_in_element`), mass_damping () mass-proportional damping constant (1/s,
-    :mod:`.mass_damping`; None in statics)."""
+    :mod:`.mass_damping`; None in statics), tendon_tension (M,) N (zero for tendons that
+    do not pass the element), tendon_offset, tendon_slope (M,Q,2) (:mod:`.tendons`),
+    chamber_force (C,) pressure times area (N), chamber_offset (C,2) (:mod:`.chambers`);
+    None when the scene has no tendons / chambers."""
     d0: jax.Array
     length: jax.Array
     stiffness: jax.Array
@@ -56,6 +59,11 @@ class ElementData(NamedTuple):
     point_follower: jax.Array
     point_xi: jax.Array
     mass_damping: jax.Array = None
+    tendon_tension: jax.Array = None
+    tendon_offset: jax.Array = None
+    tendon_slope: jax.Array = None
+    chamber_force: jax.Array = None
+    chamber_offset: jax.Array = None
 
 
 def element_state(RA, pA, RB, pB, ve, vde) -> Element:

@@ -12,8 +12,9 @@ import jax
 import jax.numpy as jnp
 
 from .. import lie
-from . import (Element, distributed, elastic, element_state, inertia, mass_damping, nodal,
-               point_in_element, viscous)
+from .. import actuator_tables
+from . import (Element, chambers, distributed, elastic, element_state, inertia, mass_damping,
+               nodal, point_in_element, tendons, viscous)
 
 
 def element_residual(structure, lam, dynamic: bool):
@@ -22,6 +23,7 @@ def element_residual(structure, lam, dynamic: bool):
     ``dynamic``)."""
     s = structure
     dead = s.has_gravity or s.has_distributed_world
+    actuators = actuator_residual(structure, lam)
 
     def residual(el: Element, data):
         r = elastic.force(el, data)
@@ -39,6 +41,28 @@ def element_residual(structure, lam, dynamic: bool):
         if s.has_point_dead or s.has_point_follower:
             r = r + point_in_element.force(el, data, lam, s.has_point_dead,
                                            s.has_point_follower)
+        if actuators is not None:
+            r = r + actuators(el, data)
+        return r
+
+    return residual
+
+
+def actuator_residual(structure, lam):
+    """``f(el, data) -> (12,)``: the tendon and chamber terms of ``structure``
+    (:mod:`.tendons`, :mod:`.chambers`) at load level ``lam``, or None when it has
+    neither."""
+    s = structure
+    if not (s.tendon_names or s.chamber_names):
+        return None
+    weights = actuator_tables.gauss_rule(s.tendon_quadrature)[1]
+
+    def residual(el: Element, data):
+        r = jnp.zeros(12, el.d.dtype)
+        if s.tendon_names:
+            r = r + tendons.force(el, data, lam, weights)
+        if s.chamber_names:
+            r = r + chambers.force(el, data, lam)
         return r
 
     return residual

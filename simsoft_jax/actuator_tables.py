@@ -1,0 +1,105 @@
+"""Scene actuators -> Model arrays: tendon routings sampled at the quadrature points of
+the elements they pass, tensions, chamber pressures and areas, and their time laws
+(:mod:`simsoft_jax.terms.tendons`, :mod:`simsoft_jax.terms.chambers`).
+
+Arc length ``s`` (m) along a rod is measured from its first node in the stress-free
+shape, nodes evenly spaced (``s_k = k L_rod / elements``). The offsets and their slopes
+are evaluated here once (NumPy) and become traced Model arrays, so a routing can be
+changed, or differentiated, without recompiling.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+_SAMPLES_PER_TURN = 12   # Gauss points per helix turn inside an element (at least 6)
+
+
+def quadrature_size(scene) -> int:
+    """Gauss points per element for the tendons (static): 1 when every offset is constant
+    (the length integrand is constant then), else 6, or 12 per helix turn inside the
+    longest element, whichever is more."""
+    routings = [t.routing for t in getattr(scene, "tendons", ())]
+    if all(r.kind == "constant" for r in routings):
+        return 1
+    turns = [rod.geometry.arc_length / rod.elements / abs(r.pitch)
+             for t, r in zip(scene.tendons, routings) if r.kind == "helix"
+             for rod in scene.rods if rod.name == t.rod]
+    return int(max([6] + [int(np.ceil(_SAMPLES_PER_TURN * x)) for x in turns]))
+
+
+def gauss_rule(q: int):
+    """Gauss-Legendre points and weights (q,) on [0, 1]."""
+    x, w = np.polynomial.legendre.leggauss(q)
+    return 0.5 * (1.0 + x), 0.5 * w
+
+
+def routing_at(routing, s):
+    """Offsets (y, z) and slopes d(y, z)/ds at arc lengths ``s`` (...,): two (..., 2)."""
+    if routing.kind == "constant":
+        offset = np.broadcast_to([routing.y, routing.z], s.shape + (2,))
+        return offset, np.zeros_like(offset)
+    if routing.kind == "helix":
+        k = 2.0 * np.pi / routing.pitch
+        theta = np.deg2rad(routing.phase_deg) + k * s
+        r = routing.radius
+        return (np.stack([r * np.cos(theta), r * np.sin(theta)], -1),
+                np.stack([-r * k * np.sin(theta), r * k * np.cos(theta)], -1))
+    offset = np.stack([np.interp(s, routing.s, routing.ys), np.interp(s, routing.s, routing.zs)], -1)
+    if len(routing.s) == 1:
+        return offset, np.zeros_like(offset)
+    # slope of the piece s lies on; zero outside the samples (the offset is held there)
+    piece = np.clip(np.searchsorted(routing.s, s, side="right") - 1, 0, len(routing.s) - 2)
+    ds = np.diff(routing.s)
+    slope = np.stack([np.diff(routing.ys)[piece] / ds[piece],
+                      np.diff(routing.zs)[piece] / ds[piece]], -1)
+    inside = (s >= routing.s[0]) & (s <= routing.s[-1])
+    return offset, slope * inside[..., None]
+
+
+def _members(items, rods, n_elements):
+    """Static membership: per item, a tuple of E bools (True for the elements it spans)."""
+    out = []
+    for it in items:
+        first = rods[it.rod].first_element
+        mask = np.zeros(n_elements, bool)
+        mask[first + it.from_node:first + it.to_node] = True
+        out.append(tuple(mask.tolist()))
+    return tuple(out)
+
+
+def tendon_arrays(scene, rods, n_elements):
+    """``(static, arrays)``: static structure (names, membership, quadrature size,
+    displacement-controlled flags) and the tendon arrays of the Model: tension (M,),
+    displacement (M,), offset and slope (M,E,Q,2)."""
+    tendons = getattr(scene, "tendons", ())
+    q = quadrature_size(scene)
+    xi, _ = gauss_rule(q)
+    offset = np.zeros((len(tendons), n_elements, q, 2))
+    slope = np.zeros_like(offset)
+    specs = {r.name: r for r in scene.rods}
+    for m, t in enumerate(tendons):
+        info, rod = rods[t.rod], specs[t.rod]
+        h = rod.geometry.arc_length / rod.elements
+        k = np.arange(t.from_node, t.to_node)
+        s = (k[:, None] + xi[None, :]) * h
+        e = info.first_element + k
+        offset[m, e], slope[m, e] = routing_at(t.routing, s)
+    static = dict(tendon_names=tuple(t.name for t in tendons),
+                  tendon_elements=_members(tendons, rods, n_elements),
+                  tendon_quadrature=q,
+                  tendon_displaced=tuple(t.displacement is not None for t in tendons))
+    arrays = dict(tendon_tension=np.array([t.tension or 0.0 for t in tendons]),
+                  tendon_displacement=np.array([t.displacement or 0.0 for t in tendons]),
+                  tendon_offset=offset, tendon_slope=slope)
+    return static, arrays
+
+
+def chamber_arrays(scene, rods, n_elements):
+    """``(static, arrays)``: names and membership; pressure (C,), area (C,), offset (C,2)."""
+    chambers = getattr(scene, "chambers", ())
+    static = dict(chamber_names=tuple(c.name for c in chambers),
+                  chamber_elements=_members(chambers, rods, n_elements))
+    arrays = dict(chamber_pressure=np.array([c.pressure for c in chambers]),
+                  chamber_area=np.array([c.area for c in chambers]),
+                  chamber_offset=np.reshape([c.offset for c in chambers], (-1, 2)))
+    return static, arrays

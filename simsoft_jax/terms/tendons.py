@@ -1,0 +1,49 @@
+"""Tendons: a frictionless cable routed through the rod at an offset from the centreline,
+pulled with a tension T (N); its action on the rod is the derivative of ``T * l``, with
+``l`` the tendon's length inside the rod (potential ``T l``: pulling shortens the tendon).
+
+Routing: the tendon passes through the section at ``rho(s) = (0, y(s), z(s))`` (m, section
+frame). Inside a helical element (spec S34: uniform strain ``nu = d_u / L``,
+``kappa = d_w / L`` over the reference length L) the tendon point
+``x(s) = p(s) + R(s) rho(s)`` has the tangent ``x' = R (nu + kappa x rho + rho')``, so its
+length in the element is ``l_e(d) = int_0^L |nu + kappa x rho + rho'| ds``
+``= sum_q w_q |d_u + d_w x rho_q + L rho'_q|`` (Gauss-Legendre points ``xi_q``, weights
+``w_q`` on [0, 1]; exact with one point for a constant offset). The path follows the
+helical interpolation inside each element and is continuous across nodes (no kink term).
+The nodal forces are ``T P(d)^T grad_d l_e(d)`` (12,) on the residual side, the same
+chain rule as the elastic force ``P^T K (d - d0)/L`` (spec S37, S42); the tangent is
+``jax.jacfwd`` of it (:mod:`simsoft_jax.terms.autodiff`). A straight tendon at offset r
+(along z) in a straight rod gives ``l_e = d_x + r d_wy``: the moment ``T r`` and the
+axial force ``T`` of the classical tendon-driven rod (Rucker & Webster 2011, IEEE T-RO
+27(6), with the tendon terminated at the end node).
+"""
+import jax
+import jax.numpy as jnp
+
+
+def element_length(d, length, offset, slope, weights):
+    """Tendon length (m) in one element: ``d`` (6,) the element's relative twist,
+    ``length`` () its reference length L (m), ``offset`` (Q,2) ``(y, z)`` at the quadrature
+    points (m), ``slope`` (Q,2) their derivatives ``d(y, z)/ds`` (1), ``weights`` (Q,)
+    Gauss weights on [0, 1]."""
+    rho = jnp.concatenate([jnp.zeros(offset.shape[:-1] + (1,), d.dtype), offset], axis=-1)
+    drho = jnp.concatenate([jnp.zeros(slope.shape[:-1] + (1,), d.dtype), slope], axis=-1)
+    t = d[:3] + jnp.cross(d[3:], rho) + length * drho
+    return jnp.sum(weights * jnp.sqrt(jnp.sum(t * t, axis=-1)))
+
+
+def total_length(d, length, offsets, slopes, tensions, weights):
+    """``sum_m T_m l_m(d)`` (J) over the tendons of one element: ``offsets``, ``slopes``
+    (M,Q,2), ``tensions`` (M,) (N; zero for tendons that do not pass this element)."""
+    lengths = jax.vmap(element_length, in_axes=(None, None, 0, 0, None))(
+        d, length, offsets, slopes, weights)
+    return jnp.dot(tensions, lengths)
+
+
+def force(el, data, lam, weights):
+    """Nodal forces (12,) ``lam P(d)^T grad_d sum_m T_m l_m(d)`` of the tendons passing
+    the element: ``data.tendon_tension`` (M,) (zero where a tendon does not pass),
+    ``data.tendon_offset``, ``data.tendon_slope`` (M,Q,2)."""
+    g = jax.grad(total_length)(el.d, data.length, data.tendon_offset, data.tendon_slope,
+                               data.tendon_tension, weights)
+    return lam * el.P.T @ g
