@@ -162,6 +162,7 @@ class Result:
             raise ValueError(f"body: no body named {name!r} (known: "
                              f"{', '.join(nodes) or 'none'})")
         return self._p[..., nodes[name], :].copy(), self._R[..., nodes[name], :, :].copy()
+
     def tendon_tension(self, name: str):
         """Tension (N) of the tendon ``name``: a float for a static result, (T,) at the
         saved times for a dynamic one (its tension times its time law)."""

@@ -166,6 +166,9 @@ class JointSpec(SpecBase):
     kind: str
     a: JointEnd
     b: JointEnd
+
+
+@dataclass(frozen=True, eq=False)
 class RoutingSpec(SpecBase):
     """A tendon's path in the section frame (m): ``kind`` "constant" (``y``, ``z``),
     "helix" (``radius``, ``pitch``, ``phase_deg``; ``theta = phase + 2 pi s / pitch``),
