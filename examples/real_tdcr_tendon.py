@@ -12,8 +12,9 @@ quantity is the tip's height only (250 mm unloaded).
 
 Model choices and caveats (stated by the data's README, kept here):
 * the pull is commanded at the motor, not measured: tendon stretch, friction and slack
-  are not modelled; the pull is applied as the tendon's exact length change
-  (``displacement``), the tension being the unknown;
+  are not modelled; the pull is applied as the pulled tendon's exact length change
+  (``displacement``), the tension being the unknown; the two other tendons are loose
+  (tension 0);
 * the tendons run continuously at 6 mm (the model value; the disk holes measure
   7.0-7.2 mm); between the 11 spacer disks a real tendon runs straight, here it follows
   the backbone's curve;
@@ -49,6 +50,15 @@ def measured_rows(path=DATA):
                    float(row["z_tip_author_model_mm_NOT_MEASURED"]) * 1e-3)
 
 
+def _tendon(k, pull):
+    """Tendon k: displacement-controlled when pulled; a tendon left alone is loose, so it
+    carries no tension (holding its length would make it take up the bending)."""
+    angle = np.radians(ANGLES_DEG[k])
+    control = {"displacement": -float(pull)} if pull > 0 else {"tension": 0.0}
+    return {"name": f"t{k + 1}", "rod": "backbone", "from_node": 0, "to_node": -1,
+            "offset": [OFFSET * np.cos(angle), OFFSET * np.sin(angle)], **control}
+
+
 def scene(pulls, elements):
     """The upright robot with the three tendons pulled by ``pulls`` (3,) m."""
     return {
@@ -64,10 +74,7 @@ def scene(pulls, elements):
                   "base": {"position": [0.0, 0.0, 0.0],
                            "rotation": {"axis": [0.0, 1.0, 0.0], "angle_deg": -90.0}}}],
         "constraints": [{"kind": "clamp", "rod": "backbone", "node": 0}],
-        "tendons": [{"name": f"t{k + 1}", "rod": "backbone", "from_node": 0, "to_node": -1,
-                     "offset": [OFFSET * np.cos(np.radians(a)), OFFSET * np.sin(np.radians(a))],
-                     "displacement": -float(pulls[k])}
-                    for k, a in enumerate(ANGLES_DEG)],
+        "tendons": [_tendon(k, pulls[k]) for k in range(3)],
     }
 
 
