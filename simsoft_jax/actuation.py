@@ -9,6 +9,8 @@ the model has such a leaf) to its value ``u[j]``, in that array's units.
 """
 from __future__ import annotations
 
+import dataclasses
+
 from typing import Sequence
 
 import jax
@@ -37,7 +39,7 @@ def _leaf(tree, path: str):
 def _replace(tree, path: str, value):
     head, _, rest = path.partition(".")
     new = value if not rest else _replace(getattr(tree, head), rest, value)
-    return tree.replace(**{head: new})
+    return dataclasses.replace(tree, **{head: new})
 
 
 def leaf_actuation(model: Model, actuators: Sequence[tuple]):
