@@ -28,6 +28,7 @@ import numpy as np
 from . import geometry as geom
 from . import lie
 from .loads import LoadChannels, build_channels
+from .scene_contact import QUADRATURE_POINTS, contact_tables
 from .sections import inertia_diagonal, stiffness_diagonal, viscosity_diagonal
 from .supports import AXES, unheld_message
 
@@ -63,6 +64,10 @@ class Structure:
     inertia_kind: str = "consistent"   # "consistent" | "lumped" element inertia
     drive_nodes: tuple = ()       # node index of each drive
     slide_drives: tuple = ()      # indices (into the drives) of the sliding ones
+    obstacle_names: tuple = ()    # [[obstacles]] names, in scene order
+    obstacle_kinds: tuple = ()    # their kinds (simsoft_jax.obstacles.KINDS); () = no contact
+    contact_points: int = 0       # quadrature points per element for contact
+    has_friction: bool = False    # some obstacle has friction > 0 (traced in dynamics)
 
     @property
     def n_elements(self) -> int:
@@ -110,6 +115,10 @@ class Model:
     (:mod:`simsoft_jax.terms.masses`). offset_force (L,3) world (N), offset_point (L,3)
     section frame (m): dead forces at offset points of nodes
     ``structure.offset_load_nodes`` (:mod:`simsoft_jax.terms.offset_loads`).
+    contact_radius (E,) m and contact_stiffness (E,) N/m^2 per element, obstacles (K,7)
+    parameter rows (:mod:`simsoft_jax.obstacles`), obstacle_friction (K,), slip_velocity
+    () m/s: the contact of :mod:`simsoft_jax.terms.contact` (read only when the structure
+    has obstacles).
     """
     structure: Structure
     R0: jax.Array
@@ -140,6 +149,11 @@ class Model:
     mass_inertia: jax.Array
     offset_force: jax.Array
     offset_point: jax.Array
+    contact_radius: jax.Array = None
+    contact_stiffness: jax.Array = None
+    obstacles: jax.Array = None
+    obstacle_friction: jax.Array = None
+    slip_velocity: jax.Array = None
 
     def replace(self, **changes) -> "Model":
         """A copy with some arrays replaced (same structure: no recompilation)."""
@@ -366,6 +380,7 @@ def build_model(scene) -> Model:
     V = np.concatenate(V)
     times, disp, rot, slide, drive_nodes, sliding = _drive_tables(scene, by_name)
     masses = getattr(scene, "masses", ())
+    obstacles = getattr(scene, "obstacles", ())
     for load in loads:
         if load.element is not None:
             point_xi[by_name[load.rod].first_element + load.element] = load.xi
@@ -390,6 +405,11 @@ def build_model(scene) -> Model:
         drive_nodes=drive_nodes, slide_drives=sliding,
         mass_nodes=tuple(by_name[m.rod].first_node + m.node for m in masses),
         offset_load_nodes=tuple(by_name[ld.rod].first_node + ld.node for ld in offset_loads),
+        obstacle_names=tuple(o.name for o in obstacles),
+        obstacle_kinds=tuple(o.kind for o in obstacles),
+        contact_points=(scene.contact.quadrature_points if scene.contact else
+                        QUADRATURE_POINTS) if obstacles else 0,
+        has_friction=any(o.friction > 0.0 for o in obstacles),
     )
     arrays = dict(
         R0=R0, p0=p0, d0=d0, length=length, stiffness=K,
@@ -404,7 +424,8 @@ def build_model(scene) -> Model:
         mass_offset=np.reshape([m.offset for m in masses], (-1, 3)),
         mass_inertia=np.reshape([m.inertia for m in masses], (-1, 3, 3)),
         offset_force=np.reshape([ld.vector for ld in offset_loads], (-1, 3)),
-        offset_point=np.reshape([ld.offset for ld in offset_loads], (-1, 3)))
+        offset_point=np.reshape([ld.offset for ld in offset_loads], (-1, 3)),
+        **contact_tables(scene, K, length))
     # one batched transfer (a device_put per array costs more than the arrays' numbers)
     arrays = jax.device_put({k: np.asarray(a, np.float64) for k, a in arrays.items()})
     return Model(structure=structure, channels=build_channels(timed, structure), **arrays)

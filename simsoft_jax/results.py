@@ -16,7 +16,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from . import compile_cache
+from . import compile_cache, contacts
 from .compile_cache import compile_stored
 from .dynamics import Trajectory, rollout
 from .dynamics.driver import compile_key
@@ -81,7 +81,10 @@ class Result:
     :class:`~simsoft_jax.dynamics.Trajectory`), stability (static only, None when not
     checked (not converged, or ``run(..., stability=False)``):
     ``{"negative_eigenvalues": n, "stable": n == 0}``,
-    :mod:`simsoft_jax.stability`).
+    :mod:`simsoft_jax.stability`), contacts (None without obstacles; else per obstacle
+    name the total normal force (N), the total force (3,) (N, world), the largest
+    penetration (m) and the nodes in contact ``{rod: [nodes]}``, each with a leading time
+    axis in dynamics: :func:`simsoft_jax.contacts.report`).
     """
 
     def __init__(self, scene: Scene, model: Model, raw, wall_time_s: float,
@@ -109,6 +112,7 @@ class Result:
             self.failed_at = None
         self._R = np.asarray(raw.R)
         self._p = np.asarray(raw.p)
+        self.contacts = contacts.report(model, self._R, self._p)
 
     def _nodes(self, rod: str) -> slice:
         info = self.model.structure.rod(rod)
@@ -147,6 +151,8 @@ class Result:
              "newton_iterations": self.newton_iterations,
              "residual_norm": self.residual_norm, "wall_time_s": self.wall_time_s,
              "compile_time_s": self.compile_time_s, "rods": rods}
+        if self.contacts is not None:
+            d["contacts"] = self.contacts
         if self.time is not None:
             d["time"] = self.time
         else:  # static: None when not checked (not converged, or skipped)
@@ -179,7 +185,11 @@ class Result:
             raise ValueError(f"output: unsupported suffix {path.suffix!r} (use .json or .npz)")
         d = self.to_dict()
         arrays = {k: np.asarray(v) for k, v in d.items()
-                  if k not in ("rods", "failed_at", "time", "stability") and v is not None}
+                  if k not in ("rods", "failed_at", "time", "stability", "contacts")
+                  and v is not None}
+        for name, c in (self.contacts or {}).items():
+            for key in ("normal_force", "force", "max_penetration"):
+                arrays[f"contacts/{name}/{key}"] = c[key]
         if self.stability is not None:
             arrays["stability/negative_eigenvalues"] = self.stability["negative_eigenvalues"]
         if self.time is not None:

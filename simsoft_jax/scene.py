@@ -24,6 +24,7 @@ from ._validate import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, fa
                         toml_document, vector)
 from .materials import BUILTIN_MATERIALS, Material, get_material
 from .scene_attachments import parse_masses, parse_offset, parse_stiffness
+from .scene_contact import parse_contact, parse_obstacles
 from .scene_initial import parse_initial
 from .scene_limits import (MAX_ELEMENTS, MAX_STEPS, check_elements, check_loads_on_held_nodes,
                            check_point_loads_in_elements, warn_short_features)
@@ -50,6 +51,8 @@ class Scene(SpecBase):
     source: str | None = None
     raw: dict = dataclasses.field(default_factory=dict)
     masses: tuple = ()                # MassSpec per [[masses]] entry
+    obstacles: tuple = ()             # ObstacleSpec per [[obstacles]] entry
+    contact: object = None            # ContactSpec of [contact] (None: defaults)
 
     @classmethod
     def from_dict(cls, d: dict, base_dir: str | Path | None = None) -> "Scene":
@@ -76,12 +79,12 @@ class Scene(SpecBase):
 # ----------------------------------------------------------------------------- parsing
 
 _TOP_KEYS = ("name", "solver", "gravity", "materials", "rods", "constraints", "loads",
-             "initial_velocity", "masses")
+             "initial_velocity", "masses", "obstacles", "contact")
 _SOLVER_KEYS = ("kind", "tolerance", "max_iterations", "load_steps", "t_end", "dt",
                 "rho_inf", "save_every", "inertia", "tangent", "max_steps")
 _MATERIAL_KEYS = ("name", "E", "G", "nu", "density", "viscosity", "mass_damping")
 _ROD_KEYS = ("name", "material", "section", "shear_coefficients", "stiffness", "inertia",
-             "elements", "geometry", "base", "initial", "segments")
+             "elements", "geometry", "base", "initial", "segments", "contact_radius")
 _SEGMENT_KEYS = ("elements", "material", "section", "shear_coefficients", "stiffness",
                  "inertia")
 _SECTIONS = {"circle": (circle, ("diameter",)),
@@ -136,6 +139,8 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
                   for i, item in enumerate(_array_of_tables(raw, "loads")))
     velocities = _parse_velocities(_array_of_tables(raw, "initial_velocity"), rods)
     masses = parse_masses(_array_of_tables(raw, "masses"), rods, _node)
+    obstacles = parse_obstacles(_array_of_tables(raw, "obstacles"))
+    contact = parse_contact(raw["contact"]) if "contact" in raw else None
     if solver.kind == "dynamic":
         warn_short_features(loads, constraints, solver.dt)
     check_loads_on_held_nodes(raw.get("loads", []), loads, constraints)
@@ -158,7 +163,7 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
                 raise ValueError(message)
     return Scene(name=name, solver=solver, gravity=gravity, rods=tuple(rods.values()),
                  constraints=constraints, loads=loads, initial_velocity=velocities,
-                 source=None, raw=raw, masses=masses)
+                 source=None, raw=raw, masses=masses, obstacles=obstacles, contact=contact)
 
 
 def _parse_solver(value: Any) -> SolverSettings:
@@ -326,6 +331,8 @@ def _parse_rod(r: dict, path: str, materials: dict[str, Material],
         initial = parse_initial(r["initial"], join(path, "initial"), name, elements + 1,
                                  position, rotation, base_dir or Path.cwd())
 
+    if "contact_radius" in r:
+        initial["contact_radius"] = positive(r["contact_radius"], join(path, "contact_radius"))
     return RodSpec(name=name, **props, elements=elements, geometry=geometry,
                    base_position=readonly(position), base_rotation=readonly(rotation),
                    segments=segments, **initial)

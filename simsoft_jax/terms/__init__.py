@@ -27,12 +27,14 @@ from .. import element as _element
 class Element(NamedTuple):
     """Local state of one element: RA (3,3) rotation of node A, d (6,) relative twist
     ``log(H_A^-1 H_B)``, P (6,12) strain map ``P(d)``, ve, vde (12,) nodal body
-    velocities and accelerations ``[node A; node B]`` (zeros in statics)."""
+    velocities and accelerations ``[node A; node B]`` (zeros in statics), pA (3,) position
+    of node A (m; read by :mod:`.contact`)."""
     RA: jax.Array
     d: jax.Array
     P: jax.Array
     ve: jax.Array
     vde: jax.Array
+    pA: jax.Array = None
 
 
 class ElementData(NamedTuple):
@@ -41,7 +43,8 @@ class ElementData(NamedTuple):
     (G,6,12) and mass (12,12) (dynamics; see :mod:`simsoft_jax.inertia`), point_dead,
     point_follower (6,) a point load inside the element at point_xi ()
     (:mod:`.point_in_element`), mass_damping () mass-proportional damping constant (1/s,
-    :mod:`.mass_damping`; None in statics)."""
+    :mod:`.mass_damping`; None in statics), contact: :class:`.contact.ContactData` (None
+    in scenes without obstacles)."""
     d0: jax.Array
     length: jax.Array
     stiffness: jax.Array
@@ -56,9 +59,10 @@ class ElementData(NamedTuple):
     point_follower: jax.Array
     point_xi: jax.Array
     mass_damping: jax.Array = None
+    contact: tuple = None
 
 
 def element_state(RA, pA, RB, pB, ve, vde) -> Element:
     """:class:`Element` from the two nodal frames and the nodal velocities/accelerations."""
     d = _element.relative_twist(RA, pA, RB, pB)
-    return Element(RA, d, _element.strain_map(d), ve, vde)
+    return Element(RA, d, _element.strain_map(d), ve, vde, pA)

@@ -12,8 +12,8 @@ import jax
 import jax.numpy as jnp
 
 from .. import lie
-from . import (Element, distributed, elastic, element_state, inertia, mass_damping, nodal,
-               point_in_element, viscous)
+from . import (Element, contact, distributed, elastic, element_state, inertia, mass_damping,
+               nodal, point_in_element, viscous)
 
 
 def element_residual(structure, lam, dynamic: bool):
@@ -39,6 +39,9 @@ def element_residual(structure, lam, dynamic: bool):
         if s.has_point_dead or s.has_point_follower:
             r = r + point_in_element.force(el, data, lam, s.has_point_dead,
                                            s.has_point_follower)
+        if s.obstacle_kinds:
+            r = r + contact.force(el, data.contact, data.length, s.obstacle_kinds,
+                                  s.contact_points, dynamic and s.has_friction)
         return r
 
     return residual
