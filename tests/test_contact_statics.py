@@ -7,6 +7,10 @@ checks.
 Both physical scenes share one structure (40 elements, a table and a drum, clamp at node
 0, a dead force at the tip, gravity), so the static solver is compiled once.
 """
+import json
+import subprocess
+import sys
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -266,3 +270,24 @@ def test_contact_radius_needed_without_a_circular_section():
     scene["rods"] = [dict(WRAP["rods"][0], contact_radius=0.02)]
     model = sj.build_model(sj.Scene.from_dict(scene))
     np.testing.assert_allclose(model.contact_radius, 0.02)
+
+
+def test_cli_run_writes_contacts_into_the_result_file(lifted, tmp_path):
+    """``simsoft-jax run`` on a scene file with obstacles writes ``"contacts"``: per obstacle
+    the normal force, the total force, the penetration and the nodes in contact, the same
+    as the Python result (the solver is read from the session's compilation cache)."""
+    scene, out = tmp_path / "lift.json", tmp_path / "out.json"
+    scene.write_text(json.dumps(LIFT))
+    done = subprocess.run([sys.executable, "-m", "simsoft_jax.cli", "run", str(scene), "-o",
+                           str(out), "--no-stability"], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr
+    written = json.loads(out.read_text())["contacts"]
+    assert set(written) == {"table", "drum"}
+    table = written["table"]
+    assert table["nodes"] == lifted.contacts["table"]["nodes"]
+    assert table["normal_force"] == pytest.approx(float(lifted.contacts["table"]["normal_force"]),
+                                                  rel=1e-9)
+    np.testing.assert_allclose(table["force"], [0.0, 0.0, table["normal_force"]], atol=1e-9)
+    assert 0.0 < table["max_penetration"] < 1e-3 * R_CONTACT
+    assert written["drum"]["nodes"] == {"rod": []} and written["drum"]["normal_force"] == 0.0
