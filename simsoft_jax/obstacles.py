@@ -2,7 +2,7 @@
 may be, zero on the obstacle's surface, negative inside the obstacle (m).
 
 Each obstacle is its kind (static structure) and a parameter row (7,) of floats (traced,
-differentiable), laid out per kind:
+differentiable; :func:`simsoft_jax.scene_contact.parameter_row`), laid out per kind:
 
 ==========  ==========================  =====================================================
 kind        row ``[0:3] | [3:6] | [6]`` signed distance of ``x``
@@ -23,8 +23,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-KINDS = ("plane", "sphere", "capsule", "cylinder", "tube")
-PARAMETERS = 7
+from .scene_contact import KINDS
 
 
 def safe_norm(v):
@@ -62,14 +61,3 @@ def signed_distance(kind: str, params, x):
     if kind == "tube":
         return radius - _axis_distance(x, a, b)
     raise ValueError(f"obstacles: unknown kind {kind!r} (known: {KINDS})")
-
-
-def parameter_row(kind: str, spec: dict):
-    """The parameter row (7,) of a validated obstacle table ``spec`` (NumPy lists)."""
-    zero = [0.0, 0.0, 0.0]
-    first, second, radius = {
-        "plane": ("point", "normal", None), "sphere": ("center", None, "radius"),
-        "capsule": ("a", "b", "radius"), "cylinder": ("axis_point", "axis", "radius"),
-        "tube": ("axis_point", "axis", "radius")}[kind]
-    return (list(spec[first]) + (list(spec[second]) if second else zero)
-            + [spec[radius] if radius else 0.0])

@@ -9,11 +9,11 @@ import numpy as np
 
 from ._validate import (SpecBase, check_keys, choice, fail, index, integer, join, number,
                         positive, readonly, require, string, table, vector)
-from .obstacles import KINDS, parameter_row
 
 OBSTACLE_KEYS = {"plane": ("point", "normal"), "sphere": ("center", "radius"),
                  "capsule": ("a", "b", "radius"), "cylinder": ("axis_point", "axis", "radius"),
                  "tube": ("axis_point", "axis", "radius")}
+KINDS = tuple(OBSTACLE_KEYS)      # obstacle kinds (simsoft_jax.obstacles)
 CONTACT_KEYS = ("radius", "self", "stiffness", "slip_velocity", "quadrature_points")
 STIFFNESS_FACTOR = 1.0e3       # default penalty: 1e3 EI / h^4 per element
 SLIP_VELOCITY = 1.0e-3         # m/s, default slip-velocity scale of the friction
@@ -34,6 +34,15 @@ class ContactSpec(SpecBase):
     stiffness: float | None = None        # N/m^2; None: STIFFNESS_FACTOR EI / h^4
     slip_velocity: float = SLIP_VELOCITY  # m/s
     quadrature_points: int = QUADRATURE_POINTS
+
+
+def parameter_row(kind: str, values: dict) -> list:
+    """The parameter row (7,) of an obstacle (layout in :mod:`simsoft_jax.obstacles`): its
+    first point, its second point or direction (zeros for a sphere), its radius (0 for a
+    plane), from the validated ``values`` by key."""
+    keys = OBSTACLE_KEYS[kind]
+    vectors = [list(values[k]) for k in keys if k != "radius"] + [[0.0, 0.0, 0.0]]
+    return vectors[0] + vectors[1] + [values.get("radius", 0.0)]
 
 
 def parse_obstacles(items: list) -> tuple:
