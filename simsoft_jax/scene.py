@@ -24,7 +24,7 @@ from ._validate import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, fa
                         toml_document, vector)
 from .materials import BUILTIN_MATERIALS, Material, get_material
 from .scene_attachments import parse_masses, parse_offset, parse_stiffness
-from .scene_contact import parse_contact, parse_obstacles
+from .scene_contact import parse_contact, parse_obstacles, warn_static_friction
 from .scene_initial import parse_initial
 from .scene_limits import (MAX_ELEMENTS, MAX_STEPS, check_elements, check_loads_on_held_nodes,
                            check_point_loads_in_elements, warn_short_features)
@@ -141,6 +141,7 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
     masses = parse_masses(_array_of_tables(raw, "masses"), rods, _node)
     obstacles = parse_obstacles(_array_of_tables(raw, "obstacles"))
     contact = parse_contact(raw["contact"]) if "contact" in raw else None
+    warn_static_friction(obstacles, solver.kind)
     if solver.kind == "dynamic":
         warn_short_features(loads, constraints, solver.dt)
     check_loads_on_held_nodes(raw.get("loads", []), loads, constraints)

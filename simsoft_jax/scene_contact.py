@@ -3,6 +3,7 @@ their model tables: plain Python + NumPy, errors naming the key path (contract i
 ``docs/scene-format.md``; the physics in :mod:`simsoft_jax.terms.contact`)."""
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -73,6 +74,17 @@ def parse_obstacles(items: list) -> tuple:
         out.append(ObstacleSpec(name, kind, readonly(np.asarray(parameter_row(kind, values),
                                                                 float)), friction))
     return tuple(out)
+
+
+def warn_static_friction(obstacles: tuple, kind: str) -> None:
+    """A static scene with friction > 0: a warning that statics ignores it (regularized
+    Coulomb acts in dynamic runs; quasi-static friction is not supported yet)."""
+    if kind != "static":
+        return
+    for i, o in enumerate(obstacles):
+        if o.friction > 0.0:
+            warnings.warn(f"obstacles[{i}].friction: static solves ignore friction (it acts "
+                          "in dynamic runs only)", stacklevel=3)
 
 
 def parse_contact(value) -> ContactSpec:
