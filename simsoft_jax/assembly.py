@@ -27,7 +27,7 @@ from .model import Model
 from .terms import ElementData, element_state
 from .terms import autodiff as term_tangents
 from .terms import masses as mass_term
-from .terms import offset_loads, point_in_element
+from .terms import contact, offset_loads, point_in_element
 
 TANGENTS = ("closed_form", "autodiff")
 
@@ -138,6 +138,36 @@ def jacfwd_terms_and_tangent(model: Model, lam, R, p):
     return element_term_and_tangent(model, R, p, term)
 
 
+def contact_and_tangent(model: Model, R, p, v=None):
+    """Nodal forces (E,12) of the contact with the obstacles
+    (:mod:`simsoft_jax.terms.contact`), their left-invariant tangents (E,12,12) and, in
+    dynamics with friction (``v`` (N,6) the nodal body velocities), their derivatives in
+    the nodal velocities (E,12,12) (else None), by ``jax.jacfwd`` in the 12 right
+    perturbations of the two nodal frames (and the 12 velocities); None when the scene has
+    no obstacles. Contact is a reaction: it is not scaled by the load level."""
+    s = model.structure
+    if not s.obstacle_kinds:
+        return None
+    friction = v is not None and s.has_friction
+    a = jnp.asarray(s.element_nodes)
+    ve = (jnp.concatenate([v[a], v[a + 1]], axis=1) if friction
+          else jnp.zeros((s.n_elements, 12), p.dtype))
+
+    def one(RA, pA, RB, pB, ve, data):
+        def f(y):
+            RA1, pA1 = lie.compose_exp(RA, pA, y[:6])
+            RB1, pB1 = lie.compose_exp(RB, pB, y[6:12])
+            el = element_state(RA1, pA1, RB1, pB1, ve + y[12:] if friction else ve, ve)
+            value = contact.force(el, data.contact, data.length, s.obstacle_kinds,
+                                  s.contact_points, friction)
+            return value, value
+
+        jac, value = jax.jacfwd(f, has_aux=True)(jnp.zeros(24 if friction else 12, RA.dtype))
+        return value, jac[:, :12], jac[:, 12:] if friction else None
+
+    return jax.vmap(one)(*element_poses(model, R, p), ve, element_data(model))
+
+
 def element_data(model: Model, maps=None, masses=None) -> ElementData:
     """The per-element model arrays (E, ...) of :class:`~simsoft_jax.terms.ElementData`
     (``maps``, ``masses``: element inertia in dynamics, None in statics)."""
@@ -159,7 +189,23 @@ def element_data(model: Model, maps=None, masses=None) -> ElementData:
                        model.viscosity, model.distributed_world, model.distributed_local,
                        jnp.broadcast_to(model.gravity, (n, 3)), maps, masses,
                        model.element_point_dead, model.element_point_follower,
-                       model.element_point_xi, model.mass_damping, **actuators)
+                       model.element_point_xi, model.mass_damping, **actuators,
+                       contact=contact_data(model))
+
+
+def contact_data(model: Model):
+    """Per-element :class:`~simsoft_jax.terms.contact.ContactData` (E, ...), the obstacle
+    rows broadcast to every element; None when the scene has no obstacles."""
+    if not model.structure.obstacle_kinds:
+        return None
+    n = model.length.shape[0]
+
+    def each(a):
+        return jnp.broadcast_to(a, (n,) + jnp.shape(a))
+
+    return contact.ContactData(model.contact_radius, model.contact_stiffness,
+                               each(model.obstacles), each(model.obstacle_friction),
+                               each(model.slip_velocity))
 
 
 def element_poses(model: Model, R, p):
@@ -305,6 +351,9 @@ def residual_and_tangent(model: Model, R, p, lam=1.0, tangent: str = "closed_for
         point = jacfwd_terms_and_tangent(model, lam, R, p)
         if point is not None:
             f_el, k_el = f_el + point[0], k_el + point[1]
+        touch = contact_and_tangent(model, R, p)
+        if touch is not None:
+            f_el, k_el = f_el + touch[0], k_el + touch[1]
     r = assemble_vector(s.n_nodes, s.element_nodes, f_el)
     diag, upper, lower = assemble_blocks(s.n_nodes, s.element_nodes, k_el)
     if s.has_nodal_dead or s.has_nodal_follower:

@@ -30,6 +30,7 @@ from . import lie
 from .actuator_tables import chamber_arrays, tendon_arrays
 from .joint_layout import layout as joint_layout
 from .loads import LoadChannels, TimeLaws, build_channels, build_laws
+from .scene_contact import QUADRATURE_POINTS, contact_tables
 from .scene_mechanisms import jointed_rods
 from .sections import inertia_diagonal, stiffness_diagonal, viscosity_diagonal
 from .supports import AXES, unheld_message
@@ -77,6 +78,10 @@ class Structure:
     tendon_displaced: tuple = ()  # per tendon: True when displacement-controlled
     chamber_names: tuple = ()     # name of each pressure chamber ([[chambers]])
     chamber_elements: tuple = ()  # per chamber, E bools: the elements it spans
+    obstacle_names: tuple = ()    # [[obstacles]] names, in scene order
+    obstacle_kinds: tuple = ()    # their kinds (simsoft_jax.obstacles.KINDS); () = no contact
+    contact_points: int = 0       # quadrature points per element for contact
+    has_friction: bool = False    # some obstacle has friction > 0 (traced in dynamics)
 
     @property
     def n_elements(self) -> int:
@@ -136,6 +141,10 @@ class Model:
     (:mod:`simsoft_jax.terms.tendons`, :mod:`simsoft_jax.actuator_tables`). chamber_pressure
     (C,) Pa, chamber_area (C,) m^2, chamber_offset (C,2) m, chamber_law: pressure
     chambers (:mod:`simsoft_jax.terms.chambers`).
+    contact_radius (E,) m and contact_stiffness (E,) N/m^2 per element, obstacles (K,7)
+    parameter rows (:mod:`simsoft_jax.obstacles`), obstacle_friction (K,), slip_velocity
+    () m/s: the contact of :mod:`simsoft_jax.terms.contact` (read only when the structure
+    has obstacles).
     """
     structure: Structure
     R0: jax.Array
@@ -178,6 +187,11 @@ class Model:
     chamber_area: jax.Array
     chamber_offset: jax.Array
     chamber_law: TimeLaws
+    contact_radius: jax.Array = None
+    contact_stiffness: jax.Array = None
+    obstacles: jax.Array = None
+    obstacle_friction: jax.Array = None
+    slip_velocity: jax.Array = None
 
     def replace(self, **changes) -> "Model":
         """A copy with some arrays replaced (same structure: no recompilation)."""
@@ -414,6 +428,7 @@ def build_model(scene) -> Model:
     times, disp, rot, slide, drive_nodes, sliding = _drive_tables(scene, by_name)
     masses = tuple(dataclasses.replace(m, node=by_name[m.rod].first_node + m.node)
                    for m in getattr(scene, "masses", ())) + joints.masses
+    obstacles = getattr(scene, "obstacles", ())
     for load in loads:
         if load.element is not None:
             point_xi[by_name[load.rod].first_element + load.element] = load.xi
@@ -443,6 +458,11 @@ def build_model(scene) -> Model:
         mass_nodes=tuple(m.node for m in masses),
         offset_load_nodes=tuple(by_name[ld.rod].first_node + ld.node for ld in offset_loads),
         **tendons, **chambers,
+        obstacle_names=tuple(o.name for o in obstacles),
+        obstacle_kinds=tuple(o.kind for o in obstacles),
+        contact_points=(scene.contact.quadrature_points if scene.contact else
+                        QUADRATURE_POINTS) if obstacles else 0,
+        has_friction=any(o.friction > 0.0 for o in obstacles),
     )
     arrays = dict(
         R0=R0, p0=p0, d0=d0, length=length, stiffness=K,
@@ -459,7 +479,8 @@ def build_model(scene) -> Model:
         offset_force=np.reshape([ld.vector for ld in offset_loads], (-1, 3)),
         offset_point=np.reshape([ld.offset for ld in offset_loads], (-1, 3)),
         joint_offset_a=joints.offset_a, joint_offset_b=joints.offset_b,
-        joint_rotation=joints.rotation, **tendon_data, **chamber_data)
+        joint_rotation=joints.rotation, **tendon_data, **chamber_data,
+        **contact_tables(scene, K, length))
     # one batched transfer (a device_put per array costs more than the arrays' numbers)
     arrays = jax.device_put({k: np.asarray(a, np.float64) for k, a in arrays.items()})
     return Model(structure=structure, channels=build_channels(timed, structure),

@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import compile_cache
+from . import compile_cache, contacts
 from .compile_cache import compile_stored
 from .dynamics import Trajectory, rollout
 from .dynamics.driver import compile_key
@@ -88,7 +88,10 @@ class Result:
     ``{"negative_eigenvalues": n, "stable": n == 0}``,
     :mod:`simsoft_jax.stability`), slack_tendons (names of displacement-controlled
     tendons whose solved tension is negative: they would have to push; also warned and
-    noted in ``message``).
+    noted in ``message``), contacts (None without obstacles; else per obstacle
+    name the total normal force (N), the total force (3,) (N, world), the largest
+    penetration (m) and the nodes in contact ``{rod: [nodes]}``, each with a leading time
+    axis in dynamics: :func:`simsoft_jax.contacts.report`).
     """
 
     def __init__(self, scene: Scene, model: Model, raw, wall_time_s: float,
@@ -116,6 +119,7 @@ class Result:
             self.failed_at = None
         self._R = np.asarray(raw.R)
         self._p = np.asarray(raw.p)
+        self.contacts = contacts.report(model, self._R, self._p)
         self.slack_tendons = self._slack_tendons()
         if self.slack_tendons:
             note = (f"tendon{'s' * (len(self.slack_tendons) > 1)} "
@@ -199,6 +203,8 @@ class Result:
         if self.model.structure.tendon_names:
             d["tendons"] = {name: {"tension": self.tendon_tension(name)}
                             for name in self.model.structure.tendon_names}
+        if self.contacts is not None:
+            d["contacts"] = self.contacts
         if self.time is not None:
             d["time"] = self.time
         else:  # static: None when not checked (not converged, or skipped)
@@ -233,12 +239,15 @@ class Result:
         d = self.to_dict()
         arrays = {k: np.asarray(v) for k, v in d.items()
                   if k not in ("rods", "bodies", "failed_at", "time", "stability",
-                               "tendons") and v is not None}
+                               "tendons", "contacts") and v is not None}
         for name, pose in d.get("bodies", {}).items():
             arrays[f"bodies/{name}/position"] = np.asarray(pose["position"])
             arrays[f"bodies/{name}/rotation"] = np.asarray(pose["rotation"])
         for name in self.model.structure.tendon_names:
             arrays[f"tendons/{name}/tension"] = np.asarray(self.tendon_tension(name))
+        for name, c in (self.contacts or {}).items():
+            for key in ("normal_force", "force", "max_penetration"):
+                arrays[f"contacts/{name}/{key}"] = c[key]
         if self.stability is not None:
             arrays["stability/negative_eigenvalues"] = self.stability["negative_eigenvalues"]
         if self.time is not None:

@@ -25,6 +25,7 @@ from ._validate import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, fa
 from .materials import BUILTIN_MATERIALS, Material, get_material
 from .scene_actuators import parse_chambers, parse_tendons
 from .scene_attachments import parse_masses, parse_offset, parse_stiffness
+from .scene_contact import parse_contact, parse_obstacles, warn_static_friction
 from .scene_mechanisms import check_mechanism, jointed_rods, parse_bodies, parse_joints
 from .scene_initial import parse_initial
 from .scene_limits import (MAX_ELEMENTS, MAX_STEPS, check_elements, check_loads_on_held_nodes,
@@ -56,6 +57,8 @@ class Scene(SpecBase):
     joints: tuple = ()                # JointSpec per [[joints]] entry
     tendons: tuple = ()               # TendonSpec per [[tendons]] entry
     chambers: tuple = ()              # ChamberSpec per [[chambers]] entry
+    obstacles: tuple = ()             # ObstacleSpec per [[obstacles]] entry
+    contact: object = None            # ContactSpec of [contact] (None: defaults)
 
     @classmethod
     def from_dict(cls, d: dict, base_dir: str | Path | None = None) -> "Scene":
@@ -82,12 +85,13 @@ class Scene(SpecBase):
 # ----------------------------------------------------------------------------- parsing
 
 _TOP_KEYS = ("name", "solver", "gravity", "materials", "rods", "constraints", "loads",
-             "initial_velocity", "masses", "bodies", "joints", "tendons", "chambers")
+             "initial_velocity", "masses", "bodies", "joints", "tendons", "chambers",
+             "obstacles", "contact")
 _SOLVER_KEYS = ("kind", "tolerance", "max_iterations", "load_steps", "t_end", "dt",
                 "rho_inf", "save_every", "inertia", "tangent", "max_steps")
 _MATERIAL_KEYS = ("name", "E", "G", "nu", "density", "viscosity", "mass_damping")
 _ROD_KEYS = ("name", "material", "section", "shear_coefficients", "stiffness", "inertia",
-             "elements", "geometry", "base", "initial", "segments")
+             "elements", "geometry", "base", "initial", "segments", "contact_radius")
 _SEGMENT_KEYS = ("elements", "material", "section", "shear_coefficients", "stiffness",
                  "inertia")
 _SECTIONS = {"circle": (circle, ("diameter",)),
@@ -149,6 +153,9 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
     tendons = parse_tendons(_array_of_tables(raw, "tendons"), rods, profile,
                             solver.kind == "dynamic")
     chambers = parse_chambers(_array_of_tables(raw, "chambers"), rods, profile)
+    obstacles = parse_obstacles(_array_of_tables(raw, "obstacles"))
+    contact = parse_contact(raw["contact"]) if "contact" in raw else None
+    warn_static_friction(obstacles, solver.kind)
     if solver.kind == "dynamic":
         warn_short_features(loads, constraints, solver.dt)
     check_loads_on_held_nodes(raw.get("loads", []), loads, constraints)
@@ -175,7 +182,7 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
     return Scene(name=name, solver=solver, gravity=gravity, rods=tuple(rods.values()),
                  constraints=constraints, loads=loads, initial_velocity=velocities,
                  source=None, raw=raw, masses=masses, bodies=bodies, joints=joints,
-                 tendons=tendons, chambers=chambers)
+                 tendons=tendons, chambers=chambers, obstacles=obstacles, contact=contact)
 
 
 def _parse_solver(value: Any) -> SolverSettings:
@@ -343,6 +350,8 @@ def _parse_rod(r: dict, path: str, materials: dict[str, Material],
         initial = parse_initial(r["initial"], join(path, "initial"), name, elements + 1,
                                  position, rotation, base_dir or Path.cwd())
 
+    if "contact_radius" in r:
+        initial["contact_radius"] = positive(r["contact_radius"], join(path, "contact_radius"))
     return RodSpec(name=name, **props, elements=elements, geometry=geometry,
                    base_position=readonly(position), base_rotation=readonly(rotation),
                    segments=segments, **initial)

@@ -67,6 +67,7 @@ class RodSpec(SpecBase):
     initial_rotations: np.ndarray | None = None   # (nodes, 3, 3), base frame (P == nodes)
     initial_velocities: np.ndarray | None = None  # (nodes, 6) body [v; w] (a restart)
     segments: tuple | None = None     # SegmentSpec per consecutive piece (None: uniform rod)
+    contact_radius: float | None = None   # m, overrides [contact].radius for this rod
 
     @property
     def nodes(self) -> int:

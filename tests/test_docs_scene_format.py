@@ -27,7 +27,8 @@ ROOT = Path(__file__).resolve().parents[1]
 DOC_PATH = ROOT / "docs" / "scene-format.md"
 DOC = DOC_PATH.read_text(encoding="utf-8")
 SOURCES = [Path(scene_module.__file__)] + [Path(scene_module.__file__).with_name(name) for name in
-                                            ("scene_initial.py", "_validate.py")]
+                                            ("scene_initial.py", "_validate.py",
+                                                             "scene_contact.py")]
 
 
 def _strings(node: ast.AST, names: dict[str, ast.AST], part: str = "all") -> set[str]:

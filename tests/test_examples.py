@@ -58,6 +58,7 @@ FIGURES = {
     "dynamic_identification": ["tip_fit.png"],
     "princeton_sweep": ["tip_deflection_map.png"],
     "tendon_actuation": ["tendon_arcs.png"],
+    "contact_catheter": ["snapshots.png", "contact_forces.png"],
 }
 
 
@@ -68,7 +69,8 @@ FIGURES = {
 LANES = (("helical_motion", "spring_steel_rod", "silicone_body", "pure_bending",
           "princeton_replay", "calibrate_princeton"),
          ("free_planar_rotation", "magellan_catheter", "bending_actuator",
-          "dynamic_identification", "princeton_sweep", "tendon_actuation"))
+          "dynamic_identification", "princeton_sweep", "tendon_actuation",
+          "contact_catheter"))
 CACHE_NAMES = ("jax_compilation_cache", "jax_compilation_cache_lane1")
 
 
@@ -293,3 +295,27 @@ def test_princeton_sweep(examples):
     assert s["converged"] and s["cases"] == tip.shape[0] * tip.shape[1]
     assert np.all(np.diff(tip[1:, :, 0], axis=1) > 0)       # flapwise, theta > 0
     assert np.all(np.diff(tip[:-1, :, 1], axis=1) > 0)      # edgewise, theta < 90
+
+
+# ------------------------------------------------------------------------------- contact
+
+def test_contact_catheter(examples):
+    """The light, damped catheter follows its quasi-static path: at t = 1 s its base has
+    moved 40 mm and it passes under the sphere, which pushes it down by
+    delta = r + R_wall - y_c at the sphere's lowest point, a = x_c - 0.04 m from the
+    clamped base. Small-deflection cantilever: F = 3 EI delta / a^3 (EI of the 2/1 mm
+    steel tube), to 5 % (the contact spreads over a few mm; friction 0.1 adds a small
+    axial force); the force points along -y; penetration below 5 % of the radius."""
+    s, _ = examples["contact_catheter"].result()
+    assert s["converged"]
+    EI = 210e9 * math.pi * (2e-3**4 - 1e-3**4) / 64
+    xc, yc, _ = s["wall_center_m"]
+    delta = s["contact_radius_m"] + s["wall_radius_m"] - yc
+    a = xc - 0.04
+    wall = s["contacts"]["wall"]
+    assert wall["normal_force_N"][-1] == pytest.approx(3 * EI * delta / a**3, rel=0.05)
+    force = np.asarray(wall["force_N"][-1])
+    assert force[1] < -0.99 * np.linalg.norm(force)
+    assert max(max(c["max_penetration_m"]) for c in s["contacts"].values()) < (
+        0.05 * s["contact_radius_m"])
+

@@ -23,7 +23,7 @@ from .. import element, inertia, lie
 from ..assembly import (_nodal_load, apply_constraints, assemble_blocks, assemble_vector,
                         dead_distributed_force, element_data, element_force_and_tangent,
                         element_poses, follower_distributed_load, nodal_load_and_tangent,
-                        attachments_and_tangents,
+                        attachments_and_tangents, contact_and_tangent,
                         jacfwd_terms_and_tangent)
 from ..drives import reduce, slide_maps
 from ..loads import loads_at
@@ -123,6 +123,10 @@ def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p,
         point = jacfwd_terms_and_tangent(model, 1.0, R, p)
         if point is not None:
             f_el, K_el = f_el + point[0], K_el + point[1]
+        touch = contact_and_tangent(model, R, p, v)
+        if touch is not None:
+            f_el, K_el = f_el + touch[0], K_el + touch[1]
+            C_el = C_el if touch[2] is None else C_el + touch[2]
     TA, TB = T[a], T[a + 1]
     K_el = jnp.concatenate([K_el[:, :, :6] @ TA, K_el[:, :, 6:] @ TB], axis=2)
     S_el = M_el * beta_p + C_el * gamma_p + K_el

@@ -27,12 +27,14 @@ from .. import element as _element
 class Element(NamedTuple):
     """Local state of one element: RA (3,3) rotation of node A, d (6,) relative twist
     ``log(H_A^-1 H_B)``, P (6,12) strain map ``P(d)``, ve, vde (12,) nodal body
-    velocities and accelerations ``[node A; node B]`` (zeros in statics)."""
+    velocities and accelerations ``[node A; node B]`` (zeros in statics), pA (3,) position
+    of node A (m; read by :mod:`.contact`)."""
     RA: jax.Array
     d: jax.Array
     P: jax.Array
     ve: jax.Array
     vde: jax.Array
+    pA: jax.Array = None
 
 
 class ElementData(NamedTuple):
@@ -44,7 +46,8 @@ class ElementData(NamedTuple):
     :mod:`.mass_damping`; None in statics), tendon_tension (M,) N (zero for tendons that
     do not pass the element), tendon_offset, tendon_slope (M,Q,2) (:mod:`.tendons`),
     chamber_force (C,) pressure times area (N), chamber_offset (C,2) (:mod:`.chambers`);
-    None when the scene has no tendons / chambers."""
+    None when the scene has no tendons / chambers; contact: :class:`.contact.ContactData`
+    (None in scenes without obstacles)."""
     d0: jax.Array
     length: jax.Array
     stiffness: jax.Array
@@ -64,9 +67,10 @@ class ElementData(NamedTuple):
     tendon_slope: jax.Array = None
     chamber_force: jax.Array = None
     chamber_offset: jax.Array = None
+    contact: tuple = None
 
 
 def element_state(RA, pA, RB, pB, ve, vde) -> Element:
     """:class:`Element` from the two nodal frames and the nodal velocities/accelerations."""
     d = _element.relative_twist(RA, pA, RB, pB)
-    return Element(RA, d, _element.strain_map(d), ve, vde)
+    return Element(RA, d, _element.strain_map(d), ve, vde, pA)

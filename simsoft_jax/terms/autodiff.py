@@ -13,8 +13,8 @@ import jax.numpy as jnp
 
 from .. import lie
 from .. import actuator_tables
-from . import (Element, chambers, distributed, elastic, element_state, inertia, mass_damping,
-               nodal, point_in_element, tendons, viscous)
+from . import (Element, chambers, contact, distributed, elastic, element_state, inertia,
+               mass_damping, nodal, point_in_element, tendons, viscous)
 
 
 def element_residual(structure, lam, dynamic: bool):
@@ -41,6 +41,9 @@ def element_residual(structure, lam, dynamic: bool):
         if s.has_point_dead or s.has_point_follower:
             r = r + point_in_element.force(el, data, lam, s.has_point_dead,
                                            s.has_point_follower)
+        if s.obstacle_kinds:
+            r = r + contact.force(el, data.contact, data.length, s.obstacle_kinds,
+                                  s.contact_points, dynamic and s.has_friction)
         if actuators is not None:
             r = r + actuators(el, data)
         return r

@@ -1,0 +1,66 @@
+"""What the obstacles do to the rods in a solved state: per obstacle the total force, its
+normal part, the largest penetration and the nodes in contact (result ``"contacts"``).
+
+From the penalty of :mod:`simsoft_jax.terms.contact` at the solution's frames: the force
+of obstacle k on the rods is ``sum_e L_e sum_i w_i psi'(delta_ik) n_ik`` (N, world), its
+normal part the same sum of magnitudes ``psi'`` (N) (friction not included); a node is in
+contact when an element it belongs to has a quadrature point with positive penetration.
+"""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .assembly import contact_data, element_poses
+from .element import relative_twist
+from .terms import contact
+
+
+@jax.jit
+def _per_obstacle(model, R, p):
+    s = model.structure
+    RA, pA, RB, pB = element_poses(model, R, p)
+    d = jax.vmap(relative_twist)(RA, pA, RB, pB)
+    force, normal, pen = jax.vmap(lambda RA, pA, d, data, length: contact.summary(
+        RA, pA, d, data, length, s.obstacle_kinds, s.contact_points))(
+        RA, pA, d, contact_data(model), model.length)
+    return force.sum(0), normal.sum(0), pen.max(0), pen > 0.0     # pen: (E,K)
+
+
+def _nodes_in_contact(structure, touching):
+    """``{rod: [node, ...]}`` from a per-element mask (E,) (nodes of touching elements)."""
+    out = {}
+    for info in structure.rods:
+        hit = touching[info.first_element:info.first_element + info.elements]
+        nodes = np.zeros(info.nodes, bool)
+        nodes[:-1] |= hit
+        nodes[1:] |= hit
+        out[info.name] = np.flatnonzero(nodes).tolist()
+    return out
+
+
+def report(model, R, p) -> dict | None:
+    """``{obstacle: {"normal_force", "force", "max_penetration", "nodes"}}`` at frames
+    ``R`` (N,3,3), ``p`` (N,3) (a static state: floats, (3,) and ``{rod: [nodes]}``) or
+    (T,N,3,3), (T,N,3) (a trajectory: each with a leading time axis, ``nodes`` a list per
+    time); None when the scene has no obstacles."""
+    s = model.structure
+    if not s.obstacle_kinds:
+        return None
+    R, p = jnp.asarray(R), jnp.asarray(p)
+    if p.ndim == 2:
+        force, normal, pen, touch = jax.device_get(_per_obstacle(model, R, p))
+    else:
+        force, normal, pen, touch = jax.device_get(jax.vmap(
+            lambda Ri, pi: _per_obstacle(model, Ri, pi))(R, p))
+    out = {}
+    for k, name in enumerate(s.obstacle_names):
+        if p.ndim == 2:
+            nodes = _nodes_in_contact(s, touch[:, k])
+        else:
+            per_time = [_nodes_in_contact(s, t[:, k]) for t in touch]
+            nodes = {r.name: [n[r.name] for n in per_time] for r in s.rods}
+        out[name] = {"normal_force": normal[..., k], "force": force[..., k, :],
+                     "max_penetration": pen[..., k], "nodes": nodes}
+    return out

@@ -1,0 +1,149 @@
+"""Contact of an element with rigid obstacles: a smooth penalty on the gap, looked for along
+the element's helical interpolation, and regularized Coulomb friction (dynamics).
+
+Where. The centreline point at ``xi`` in [0, 1] is the position part of
+``H_A exp(xi d)`` (spec S33): ``x(xi) = p_A + R_A T_SO3(xi d_w)^T (xi d_u)``; contact is
+looked for at the ``n`` Gauss-Legendre points of the element (``[contact]
+quadrature_points``), so a coarse rod cannot pass through an obstacle smaller than an
+element between its nodes.
+
+Normal contact (penalty). With the obstacle's signed distance ``phi(x)``
+(:mod:`simsoft_jax.obstacles`) and the rod's contact radius ``r``, the gap is
+``g = phi(x) - r`` and the penetration ``delta = -g``. The energy per unit length is the
+C2 penalty
+
+    psi(delta) = 0                                    delta <= 0
+               = k delta^3 / (6 eps)                  0 < delta < eps
+               = k (delta - eps/2)^2 / 2 + k eps^2/24 delta >= eps
+
+with ``k`` the penalty stiffness (N/m^2: the line load per metre of penetration, once past
+the smoothing width) and ``eps = SMOOTHING * r`` (a cubic start, so the force
+``psi'(delta)`` and its slope are continuous and Newton sees no kink). A line load ``q``
+(N/m) pressing the rod on an obstacle sinks it by ``delta ~ q/k + eps/2`` (or
+``sqrt(2 eps q/k)`` while ``delta < eps``). The element's energy is
+``L sum_i w_i sum_k psi(delta_k(x(xi_i)))`` (Gauss weights ``w_i`` on [0, 1], ``L`` the
+reference length).
+
+Nodal forces. The right perturbations of the two nodal frames move the section at ``xi``
+by the twist ``N(xi, d) [dq_A; dq_B]`` (the velocity-field map, spec S38,
+:func:`simsoft_jax.element.velocity_field_map`), so ``dx = R(xi) (N dq)_u``: the exact
+derivative of the energy in those perturbations is
+``L sum_i w_i N_i^T [R_i^T (-psi'(delta) grad phi); 0]`` (residual side; the obstacle
+pushes along ``+grad phi``). Tangents by ``jax.jacfwd`` (:mod:`.autodiff` and
+:func:`simsoft_jax.assembly.contact_and_tangent`).
+
+Friction (dynamics). The contact point moves with the centreline velocity
+``v = R(xi) (N(xi, d) v_e)_u`` (world); its part tangent to the obstacle
+``v_t = v - (v . n) n`` (``n = grad phi``) meets the regularized Coulomb line load
+``f_t = -mu f_n v_t / sqrt(|v_t|^2 + v_s^2)`` (``f_n = psi'(delta)``, ``mu`` the
+obstacle's coefficient, ``v_s`` the slip-velocity scale, ``[contact] slip_velocity``):
+viscous-like below ``v_s``, Coulomb's ``mu f_n`` opposite to the slip above it. It is
+not conservative; its tangent in the velocities is the C block of the iteration matrix.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import element, lie, obstacles
+
+SMOOTHING = 0.01   # eps / r: width of the cubic start of the penalty, fraction of the radius
+
+
+class ContactData(NamedTuple):
+    """An element's contact arrays: radius () m, stiffness () N/m^2 (penalty ``k``),
+    obstacles (K,7) parameter rows (:mod:`simsoft_jax.obstacles`), friction (K,) Coulomb
+    coefficients, slip_velocity () m/s."""
+    radius: jax.Array
+    stiffness: jax.Array
+    obstacles: jax.Array
+    friction: jax.Array
+    slip_velocity: jax.Array
+
+
+def quadrature(n: int):
+    """Gauss-Legendre points (n,) and weights (n,) on [0, 1] (weights sum to 1)."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    return 0.5 * (x + 1.0), 0.5 * w
+
+
+def penalty_slope(delta, k, eps):
+    """``psi'(delta)`` (N/m): the normal line load at penetration ``delta`` (m)."""
+    inside = jnp.clip(delta, 0.0, eps)
+    return jnp.where(delta < eps, k * inside**2 / (2.0 * eps), k * (delta - 0.5 * eps))
+
+
+def penalty(delta, k, eps):
+    """``psi(delta)`` (J/m), the penalty energy per unit length (module docstring)."""
+    inside = jnp.clip(delta, 0.0, eps)
+    return jnp.where(delta < eps, k * inside**3 / (6.0 * eps),
+                     0.5 * k * (delta - 0.5 * eps) ** 2 + k * eps**2 / 24.0)
+
+
+def centreline_point(RA, pA, d, xi):
+    """Rotation (3,3) and position (3,) of the section at ``xi``: ``H_A exp(xi d)``."""
+    return lie.compose_exp(RA, pA, xi * d)
+
+
+def _gap_and_normal(kind, params, radius, x):
+    phi, normal = jax.value_and_grad(lambda y: obstacles.signed_distance(kind, params, y))(x)
+    return phi - radius, normal
+
+
+def stations(RA, pA, d, data: ContactData, kinds: tuple, n: int):
+    """Per quadrature point and obstacle: the penetration (n,K) m, the normal line load
+    ``psi'`` (n,K) N/m and the unit normals (n,K,3) (world), and the section frames
+    (n,3,3), (n,3) at the quadrature points."""
+    xi, _ = quadrature(n)
+    R, x = jax.vmap(lambda t: centreline_point(RA, pA, d, t))(jnp.asarray(xi))
+    eps = SMOOTHING * data.radius
+    pen, load, normals = [], [], []
+    for k, kind in enumerate(kinds):
+        g, nrm = jax.vmap(lambda y: _gap_and_normal(kind, data.obstacles[k], data.radius,
+                                                    y))(x)
+        pen.append(-g)
+        load.append(penalty_slope(-g, data.stiffness, eps))
+        normals.append(nrm)
+    return (jnp.stack(pen, 1), jnp.stack(load, 1), jnp.stack(normals, 1), R, x)
+
+
+def force(el, data: ContactData, length, kinds: tuple, n: int, friction: bool = False):
+    """Nodal forces (12,) of the contact (and, when ``friction``, the friction) of one
+    element (:class:`~simsoft_jax.terms.Element` ``el`` with ``el.pA``) with the obstacles
+    ``kinds`` (static), residual side (module docstring); ``length`` the element's
+    reference length (m), ``n`` the quadrature points."""
+    xi, w = quadrature(n)
+    _, load, normals, R, _ = stations(el.RA, el.pA, el.d, data, kinds, n)
+    maps = jax.vmap(lambda t: element.velocity_field_map(t, el.d, el.P))(jnp.asarray(xi))
+    f = jnp.einsum("nk,nki->ni", load, normals)                  # world line load (n,3)
+    if friction:
+        v = jnp.einsum("nij,nj->ni", R, (maps @ el.ve)[:, :3])   # centreline velocity
+        vn = jnp.einsum("nki,ni->nk", normals, v)
+        vt = v[:, None, :] - vn[..., None] * normals               # (n,K,3)
+        slip = jnp.sqrt(jnp.sum(vt**2, -1) + data.slip_velocity**2)
+        f = f - jnp.einsum("nk,nki->ni", data.friction * load / slip, vt)
+    local = jnp.einsum("nji,nj->ni", R, f)                         # R^T f
+    wrench = jnp.concatenate([local, jnp.zeros_like(local)], axis=1)
+    return -length * jnp.einsum("n,nji,nj->i", jnp.asarray(w), maps, wrench)
+
+
+def energy(RA, pA, RB, pB, data: ContactData, length, kinds: tuple, n: int):
+    """Penalty energy (J) of one element given its two nodal frames (module docstring)."""
+    _, w = quadrature(n)
+    d = element.relative_twist(RA, pA, RB, pB)
+    pen, _, _, _, _ = stations(RA, pA, d, data, kinds, n)
+    eps = SMOOTHING * data.radius
+    return length * jnp.sum(jnp.asarray(w)[:, None] * penalty(pen, data.stiffness, eps))
+
+
+def summary(RA, pA, d, data: ContactData, length, kinds: tuple, n: int):
+    """Per obstacle (K,): the force of the obstacle on the element (K,3) N (world), its
+    normal part ``sum L w psi'`` (K,) N, and the largest penetration (K,) m (0 if none)."""
+    _, w = quadrature(n)
+    pen, load, normals, _, _ = stations(RA, pA, d, data, kinds, n)
+    weights = length * jnp.asarray(w)[:, None]
+    return (jnp.einsum("nk,nki->ki", weights * load, normals),
+            jnp.sum(weights * load, 0), jnp.maximum(pen.max(0), 0.0))
