@@ -57,6 +57,21 @@ def parse_offset(ld: dict, path: str, kind: str, frame: str, profile_kind: str,
     return vector(ld["offset"], opath)
 
 
+def parse_inertia(value: Any, path: str) -> np.ndarray:
+    """An inertia tensor (3,3), kg m^2: 3 rows of 3 numbers, symmetric (to 1e-9 of its
+    largest entry; symmetrized) and positive semi-definite."""
+    inertia = matrix(value, path, 3)
+    if inertia.shape != (3, 3):
+        fail(path, f"must be 3x3 (3 rows of 3 numbers), got {len(inertia)} rows")
+    scale = max(np.abs(inertia).max(), 1e-300)
+    if np.abs(inertia - inertia.T).max() > 1e-9 * scale:
+        fail(path, "must be symmetric")
+    inertia = 0.5 * (inertia + inertia.T)
+    if np.linalg.eigvalsh(inertia).min() < -1e-12 * scale:
+        fail(path, "must be positive semi-definite (principal moments >= 0)")
+    return inertia
+
+
 def parse_masses(items: list, rods: dict, node_of) -> tuple:
     """``[[masses]]`` -> :class:`~simsoft_jax.scene_specs.MassSpec` tuple: a rigid mass
     (``mass`` > 0, kg) attached to a rod node, centre of mass at ``offset`` (m, section
@@ -78,16 +93,7 @@ def parse_masses(items: list, rods: dict, node_of) -> tuple:
         offset = vector(item.get("offset", [0.0, 0.0, 0.0]), join(path, "offset"))
         inertia = np.zeros((3, 3))
         if "inertia" in item:
-            ipath = join(path, "inertia")
-            inertia = matrix(item["inertia"], ipath, 3)
-            if inertia.shape != (3, 3):
-                fail(ipath, f"must be 3x3 (3 rows of 3 numbers), got {len(inertia)} rows")
-            scale = max(np.abs(inertia).max(), 1e-300)
-            if np.abs(inertia - inertia.T).max() > 1e-9 * scale:
-                fail(ipath, "must be symmetric")
-            inertia = 0.5 * (inertia + inertia.T)
-            if np.linalg.eigvalsh(inertia).min() < -1e-12 * scale:
-                fail(ipath, "must be positive semi-definite (principal moments >= 0)")
+            inertia = parse_inertia(item["inertia"], join(path, "inertia"))
         out.append(MassSpec(rod=name, node=node, mass=mass, offset=readonly(offset),
                             inertia=readonly(inertia)))
     return tuple(out)

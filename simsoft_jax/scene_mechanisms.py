@@ -6,26 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validate import (check_keys, fail, index, join, matrix, number, readonly, rodrigues,
+from ._validate import (check_keys, fail, index, join, number, readonly, rodrigues,
                         rotation_vector, string, table, vector)
+from .scene_attachments import parse_inertia
 from .scene_specs import BodySpec, JointEnd, JointSpec
 
 BODY_KEYS = ("name", "mass", "inertia", "position", "rotation")
 JOINT_KEYS = ("kind", "a", "b")
 JOINT_KINDS = ("weld", "ball")
-
-
-def _inertia(value, path: str) -> np.ndarray:
-    J = matrix(value, path, 3)
-    if J.shape != (3, 3):
-        fail(path, f"must be 3x3 (3 rows of 3 numbers), got {len(J)} rows")
-    scale = max(np.abs(J).max(), 1e-300)
-    if np.abs(J - J.T).max() > 1e-9 * scale:
-        fail(path, "must be symmetric")
-    J = 0.5 * (J + J.T)
-    if np.linalg.eigvalsh(J).min() < -1e-12 * scale:
-        fail(path, "must be positive semi-definite (principal moments >= 0)")
-    return J
 
 
 def parse_bodies(items: list, rods: dict) -> tuple:
@@ -45,7 +33,7 @@ def parse_bodies(items: list, rods: dict) -> tuple:
         mass = number(item.get("mass", 0.0), join(path, "mass"))
         if mass < 0.0:
             fail(join(path, "mass"), f"must be >= 0, got {mass}")
-        inertia = (_inertia(item["inertia"], join(path, "inertia")) if "inertia" in item
+        inertia = (parse_inertia(item["inertia"], join(path, "inertia")) if "inertia" in item
                    else np.zeros((3, 3)))
         position = vector(item.get("position", [0.0, 0.0, 0.0]), join(path, "position"))
         rotation = (rodrigues(rotation_vector(item["rotation"], join(path, "rotation")))
