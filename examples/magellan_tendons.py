@@ -34,6 +34,7 @@ import json
 import numpy as np
 
 import simsoft_jax as sj
+from simsoft_jax import plotting
 
 from _common import SCENES, parse_args, save, write_summary
 
@@ -98,10 +99,10 @@ def main():
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.6), sharex=True, sharey=True)
     for ax, result, title in ((axes[0], torque, "prescribed torques (seed)"),
                               (axes[1], tendons, "tendons")):
-        time, p = result.time, result.positions("catheter")
-        for t in (0.25, 0.5, 0.75, 1.0):
+        time, (p, _) = result.time, plotting.sample_result(result, "catheter")
+        for t in (0.25, 0.5, 0.75, 1.0):     # the helical interpolation between nodes
             i = int(np.argmin(np.abs(time - t)))
-            ax.plot(p[i, :, 0] * 1e3, p[i, :, 1] * 1e3, "o-", ms=2, label=f"t = {time[i]:.2f} s")
+            ax.plot(p[i, :, 0] * 1e3, p[i, :, 1] * 1e3, "-", label=f"t = {time[i]:.2f} s")
         ax.set(title=title, xlabel="x (mm)", aspect="equal")
     axes[0].set_ylabel("y (mm)")
     axes[1].legend(fontsize="small")
