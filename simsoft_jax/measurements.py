@@ -65,19 +65,7 @@ def read_rows(path) -> list[tuple[int, str, str, int, list]]:
     rows = []
     for line, row, node in _records(path, COLUMNS, ("scene", "rod", "node"),
                                     f"need {list(COLUMNS)}"):
-        xyz = []
-        for key in "xyz":
-            text = (row[key] or "").strip()
-            if not text:
-                xyz.append(None)
-                continue
-            try:
-                value = float(text)
-            except ValueError:
-                _fail(path, line, key, f"not a number: {text!r}")
-            if not np.isfinite(value):
-                _fail(path, line, key, "not finite")
-            xyz.append(value)
+        xyz = [_number(path, line, row, key, default=None) for key in "xyz"]
         if all(v is None for v in xyz):
             _fail(path, line, "x,y,z", "no component measured")
         rows.append((line, row["scene"].strip(), row["rod"].strip(), node, xyz))
@@ -169,10 +157,15 @@ def is_observation_file(path) -> bool:
         return "quantity" in (csv.DictReader(handle).fieldnames or [])
 
 
-def _number(path, line, row, key, default=None, positive=False):
+_REQUIRED = object()
+
+
+def _number(path, line, row, key, default=_REQUIRED, positive=False):
+    """The finite number in ``row[key]`` (``positive``: also > 0); an empty cell gives
+    ``default`` (None allowed), or fails when there is none."""
     text = (row.get(key) or "").strip()
     if not text:
-        if default is None:
+        if default is _REQUIRED:
             _fail(path, line, key, "empty")
         return default
     try:
