@@ -19,14 +19,22 @@ import simsoft_jax as sj
 from simsoft_jax import sweeps
 from simsoft_jax.output import write_atomic
 
-ELEMENTS, L = 4, 0.3
-SCENE = {"name": "strip", "solver": {"kind": "static"},
-         "rods": [{"name": "arm", "material": "spring_steel",
-                   "section": {"shape": "rectangle", "width": 2e-3, "height": 10e-3},
-                   "elements": ELEMENTS, "geometry": {"kind": "straight", "length": L}}],
-         "constraints": [{"kind": "clamp", "rod": "arm", "node": 0}],
-         "loads": [{"kind": "force", "rod": "arm", "node": -1, "vector": [0.0, 1.0, 0.0],
-                    "frame": "world"}]}
+L = 0.3
+
+
+def strip_scene(elements: int) -> dict:
+    """A clamped spring-steel strip (L = 0.3 m, 2 x 10 mm) with a unit world force along y
+    at its tip: the sweep tests' scene (also tests/test_sweeps.py)."""
+    return {"name": "strip", "solver": {"kind": "static"},
+            "rods": [{"name": "arm", "material": "spring_steel",
+                      "section": {"shape": "rectangle", "width": 2e-3, "height": 10e-3},
+                      "elements": elements, "geometry": {"kind": "straight", "length": L}}],
+            "constraints": [{"kind": "clamp", "rod": "arm", "node": 0}],
+            "loads": [{"kind": "force", "rod": "arm", "node": -1, "vector": [0.0, 1.0, 0.0],
+                       "frame": "world"}]}
+
+
+SCENE = strip_scene(4)
 POINTS = {"force": np.array([0.5, 3.0, 8.0, 1.0, 5.0]), "stiff": np.array([1.0, 0.7, 1.3, 2.0, 1.0])}
 
 

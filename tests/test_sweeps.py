@@ -9,15 +9,10 @@ import pytest
 import simsoft_jax as sj
 from simsoft_jax import sweeps
 from conftest import SCENES_DIR
+from sweeps_subprocess import L, strip_scene
 
-L, ELEMENTS = 0.3, 6
-SCENE = {"name": "strip", "solver": {"kind": "static"},
-         "rods": [{"name": "arm", "material": "spring_steel",
-                   "section": {"shape": "rectangle", "width": 2e-3, "height": 10e-3},
-                   "elements": ELEMENTS, "geometry": {"kind": "straight", "length": L}}],
-         "constraints": [{"kind": "clamp", "rod": "arm", "node": 0}],
-         "loads": [{"kind": "force", "rod": "arm", "node": -1, "vector": [0.0, 1.0, 0.0],
-                    "frame": "world"}]}
+ELEMENTS = 6
+SCENE = strip_scene(ELEMENTS)
 
 
 def vary_force_and_stiffness(model, q):
