@@ -113,6 +113,32 @@ def _joint_values_and_jacobians(model, R, p, mu, kind, members, k, z):
                          model.joint_offset_b[idx], model.joint_rotation[idx])
 
 
+def _in_chain(structure) -> np.ndarray:
+    """(N,) 1 on the nodes solved in the chains, 0 on the coupling nodes (static)."""
+    chain = np.ones(structure.n_nodes)
+    chain[list(structure.coupling_nodes)] = 0.0
+    return chain
+
+
+def _residuals(model, r, joint_values):
+    """The chain residual (N,6) and the coupling residual ``r_z`` (m,) from the rods'
+    residual ``r`` (N,6, masked): the coupling nodes' rows move into ``r_z``, and each
+    joint group's values ``phi`` (``joint_values``, in :func:`_groups` order) are added
+    where they live; held dofs of coupling nodes get no residual."""
+    s = model.structure
+    mask = s.free_mask()
+    nodes = jnp.asarray(s.coupling_nodes, dtype=int)
+    nb = len(s.coupling_nodes)
+    r_z = jnp.concatenate([r[nodes].reshape(-1),
+                           jnp.zeros(coupling_count(s) - 6 * nb, r.dtype)])
+    r = r * jnp.asarray(_in_chain(s))[:, None]
+    for value, (_, _, _, is_rod, node, dof, z) in zip(joint_values, _groups(s)):
+        rod = jnp.asarray(is_rod, r.dtype)                  # (J, 12 + k)
+        r = r.at[node, dof].add(value * mask[node, dof] * rod)
+        r_z = r_z.at[z].add(value * (1.0 - rod))
+    return r, r_z * _coupling_mask(s, mask)
+
+
 def couple(model, R, p, mu, r, blocks) -> Coupled:
     """The bordered system at frames (R, p) (N,...) and multipliers ``mu`` (M,), from the
     rods' residual ``r`` (N,6) and tangent ``blocks`` (held dofs already identity rows)."""
@@ -120,20 +146,16 @@ def couple(model, R, p, mu, r, blocks) -> Coupled:
     mask = s.free_mask()
     m = coupling_count(s)
     diag, upper, lower = blocks
-    nodes = jnp.asarray(s.coupling_nodes, dtype=int)
-    nb = len(s.coupling_nodes)
-    r_z = jnp.concatenate([r[nodes].reshape(-1), jnp.zeros(m - 6 * nb, p.dtype)])
     B = jnp.zeros(r.shape + (m,), p.dtype)
     C = jnp.zeros((m,) + r.shape, p.dtype)
     D = jnp.zeros((m, m), p.dtype)
     n = s.n_nodes
     # a coupling node's rows, and the element blocks joining it to its chain neighbours,
     # leave the chain (scatter-adds and masks only: reverse mode transposes them)
-    in_chain = np.ones(n)
-    in_chain[list(s.coupling_nodes)] = 0.0
+    in_chain = _in_chain(s)
     link = in_chain[:-1] * in_chain[1:]          # element blocks that stay in a chain
-    for k, i in enumerate(s.coupling_nodes):
-        cols = slice(6 * k, 6 * k + 6)
+    column = {i: slice(6 * k, 6 * k + 6) for k, i in enumerate(s.coupling_nodes)}
+    for i, cols in column.items():
         D = D.at[cols, cols].add(diag[i])
         if i > 0:           # the blocks with node i-1 (zero blocks across rods)
             B = B.at[i - 1, :, cols].add(upper[i - 1] * in_chain[i - 1])
@@ -141,22 +163,19 @@ def couple(model, R, p, mu, r, blocks) -> Coupled:
         if i < n - 1:
             B = B.at[i + 1, :, cols].add(lower[i] * in_chain[i + 1])
             C = C.at[cols, i + 1].add(upper[i] * in_chain[i + 1])
-    for k, i in enumerate(s.coupling_nodes):      # two coupling nodes side by side
-        for k2, i2 in enumerate(s.coupling_nodes):
-            if i2 == i + 1:
-                D = D.at[6 * k:6 * k + 6, 6 * k2:6 * k2 + 6].add(upper[i])
-                D = D.at[6 * k2:6 * k2 + 6, 6 * k:6 * k + 6].add(lower[i])
-    keep_rows = jnp.asarray(in_chain)[:, None]
-    r = r * keep_rows
-    diag = diag * keep_rows[:, :, None] + (1.0 - keep_rows[:, :, None]) * jnp.eye(6, dtype=p.dtype)
+        if i + 1 in column:                      # two coupling nodes side by side
+            D = D.at[cols, column[i + 1]].add(upper[i])
+            D = D.at[column[i + 1], cols].add(lower[i])
+    keep_rows = jnp.asarray(in_chain)[:, None, None]
+    diag = diag * keep_rows + (1.0 - keep_rows) * jnp.eye(6, dtype=p.dtype)
     upper, lower = upper * link[:, None, None], lower * link[:, None, None]
+    values = []
     for kind, members, k, is_rod, node, dof, z in _groups(s):
         value, jac = _joint_values_and_jacobians(model, R, p, mu, kind, members, k, z)
+        values.append(value)
         rod = jnp.asarray(is_rod, p.dtype)                  # (J, 12 + k)
         free = mask[node, dof] * rod
         coupling = 1.0 - rod
-        r = r.at[node, dof].add(value * free)
-        r_z = r_z.at[z].add(value * coupling)
         same = node[:, :, None] == node[:, None, :]
         both = free[:, :, None] * free[:, None, :] * same
         diag = diag.at[node[:, :, None], dof[:, :, None], dof[:, None, :]].add(jac * both)
@@ -166,9 +185,10 @@ def couple(model, R, p, mu, r, blocks) -> Coupled:
             jac * coupling[:, :, None] * free[:, None, :])
         D = D.at[z[:, :, None], z[:, None, :]].add(
             jac * coupling[:, :, None] * coupling[:, None, :])
+    r, r_z = _residuals(model, r, values)
     keep = _coupling_mask(s, mask)          # held dofs of coupling nodes stay put
     D = keep[:, None] * D * keep[None, :] + jnp.diag(1.0 - keep)
-    return Coupled(r, (diag, upper, lower), B * keep, C * keep[:, None, None], D, r_z * keep)
+    return Coupled(r, (diag, upper, lower), B * keep, C * keep[:, None, None], D, r_z)
 
 
 def _coupling_mask(structure, mask):
@@ -182,21 +202,9 @@ def _coupling_mask(structure, mask):
 def residual(model, R, p, mu, r):
     """Residuals of the bordered system without its matrix: the rods' residual ``r``
     (N,6, masked) plus the joint forces, and ``r_z`` (m,)."""
-    s = model.structure
-    mask = s.free_mask()
-    nodes = jnp.asarray(s.coupling_nodes, dtype=int)
-    nb = len(s.coupling_nodes)
-    r_z = jnp.concatenate([r[nodes].reshape(-1),
-                           jnp.zeros(coupling_count(s) - 6 * nb, p.dtype)])
-    in_chain = np.ones(s.n_nodes)
-    in_chain[list(s.coupling_nodes)] = 0.0
-    r = r * jnp.asarray(in_chain)[:, None]
-    for kind, members, k, is_rod, node, dof, z in _groups(s):
-        value, _ = _joint_values_and_jacobians(model, R, p, mu, kind, members, k, z)
-        rod = jnp.asarray(is_rod, p.dtype)
-        r = r.at[node, dof].add(value * mask[node, dof] * rod)
-        r_z = r_z.at[z].add(value * (1.0 - rod))
-    return r, r_z * _coupling_mask(s, mask)
+    values = [_joint_values_and_jacobians(model, R, p, mu, kind, members, k, z)[0]
+              for kind, members, k, _, _, _, z in _groups(model.structure)]
+    return _residuals(model, r, values)
 
 
 def split(structure, x, z):
@@ -204,15 +212,15 @@ def split(structure, x, z):
     (N,6) (coupling-node rows from z) and the multiplier increments (M,)."""
     nb = len(structure.coupling_nodes)
     nodes = jnp.asarray(structure.coupling_nodes, dtype=int)
-    chain = np.ones((structure.n_nodes, 1))
-    chain[list(structure.coupling_nodes)] = 0.0
-    return x * chain + jnp.zeros_like(x).at[nodes].add(z[:6 * nb].reshape(nb, 6)), z[6 * nb:]
+    return (x * _in_chain(structure)[:, None]
+            + jnp.zeros_like(x).at[nodes].add(z[:6 * nb].reshape(nb, 6)), z[6 * nb:])
 
 
-def violation_norm(structure, model, r_z):
+def violation_norm(model, r_z):
     """Weighted size of the coupling residuals: coupling-node forces (N) and moments / char_length
     like :func:`simsoft_jax.statics.weighted_norm`, joint gaps / char_length and joint
     rotations (rad), as a pair (forces, gaps)."""
+    structure = model.structure
     nb = len(structure.coupling_nodes)
     body = r_z[:6 * nb].reshape(nb, 6)
     forces = jnp.sqrt(jnp.sum(body[:, :3] ** 2) + jnp.sum((body[:, 3:] / model.char_length) ** 2))

@@ -284,7 +284,7 @@ def _mechanism_step(model: Model, ref, R, p, y, r, blocks):
     system = mechanisms.couple(model, R, p, y, r, blocks)
     x, z = solve_coupled(factorize_coupled(system.blocks, system.B, system.C, system.D),
                          -system.r, -system.r_z)
-    forces, gaps = mechanisms.violation_norm(model.structure, model, system.r_z)
+    forces, gaps = mechanisms.violation_norm(model, system.r_z)
     res = jnp.sqrt(weighted_norm(model, system.r) ** 2 + forces ** 2 + (ref * gaps) ** 2)
     return (res,) + mechanisms.split(model.structure, x, z)
 
