@@ -27,13 +27,12 @@ from .scene_specs import MassSpec
 
 class JointLayout(NamedTuple):
     """Body node frames (B,3,3)/(B,3); ``bodies`` (name, node) of the scene's bodies;
-    ``body_nodes``; ``coupling_nodes`` (bodies first); ``joints`` (kind, node a, node b);
+    ``coupling_nodes`` (bodies first); ``joints`` (kind, node a, node b);
     the joint tables offset_a, offset_b (J,3), rotation (J,3,3); ``masses``: MassSpec
     entries (model node indices) of the bodies with mass."""
     R: np.ndarray
     p: np.ndarray
     bodies: tuple
-    body_nodes: tuple
     coupling_nodes: tuple
     joints: tuple
     offset_a: np.ndarray
@@ -104,7 +103,6 @@ def layout(scene, rods: dict, R0: np.ndarray, p0: np.ndarray,
                    for k, b in enumerate(bodies) if b.mass > 0.0)
     return JointLayout(
         R=R, p=p, bodies=tuple((b.name, node_of_body[b.name]) for b in bodies),
-        body_nodes=body_nodes,
         coupling_nodes=body_nodes + _coupling_rod_nodes(scene, rods, node_of, held_by_joints),
         joints=tuple(table), offset_a=np.reshape(off_a, (-1, 3)),
         offset_b=np.reshape(off_b, (-1, 3)), rotation=np.reshape(rot, (-1, 3, 3)),

@@ -68,7 +68,6 @@ class Structure:
     drive_nodes: tuple = ()       # node index of each drive
     slide_drives: tuple = ()      # indices (into the drives) of the sliding ones
     bodies: tuple = ()            # (name, node) of each [[bodies]] entry
-    body_nodes: tuple = ()        # nodes of the rigid bodies (after the rods' nodes)
     coupling_nodes: tuple = ()    # nodes solved in the coupling set: the bodies, then
                                   # rod nodes of joints (simsoft_jax.mechanisms)
     joints: tuple = ()            # (kind, node a, node b) per joint ("weld" | "ball")
@@ -132,7 +131,7 @@ class Model:
     joint_offset_a, joint_offset_b (J,3): the joint point in the frames of the joint's
     nodes a and b (m); joint_rotation (J,3,3): the relative rotation ``R_a^T R_b`` a weld
     keeps (:mod:`simsoft_jax.terms.joints`). Rigid bodies are nodes after the rods' nodes
-    (``structure.body_nodes``), their mass and inertia attached masses.
+    (``structure.bodies``), their mass and inertia attached masses.
     tendon_tension (M,) N, tendon_displacement (M,) m (prescribed length change of a
     displacement-controlled tendon), tendon_offset, tendon_slope (M,E,Q,2): the routing
     ``(y, z)`` (m, section frame) and ``d(y, z)/ds`` at the Q Gauss points of every
@@ -453,7 +452,7 @@ def build_model(scene) -> Model:
         coupled_stiffness=coupled,
         inertia_kind=getattr(scene.solver, "inertia", "consistent"),
         drive_nodes=drive_nodes, slide_drives=sliding, bodies=joints.bodies,
-        body_nodes=joints.body_nodes, coupling_nodes=joints.coupling_nodes,
+        coupling_nodes=joints.coupling_nodes,
         joints=joints.joints,
         mass_nodes=tuple(m.node for m in masses),
         offset_load_nodes=tuple(by_name[ld.rod].first_node + ld.node for ld in offset_loads),
