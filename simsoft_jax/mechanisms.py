@@ -82,10 +82,12 @@ def _groups(structure):
     return out
 
 
-def _joint_values_and_jacobians(model, R, p, mu, kind, members, k, z):
+def _joint_values_and_jacobians(model, R, p, mu, kind, members, k, z, T=None):
     """``phi`` (J,12+k) and its Jacobians (J,12+k,12+k) in ``[x_a; x_b; mu]`` (module
     docstring) of the joints ``members`` of one kind, vmapped; ``z`` their index table
-    (the multipliers sit at its last k columns)."""
+    (the multipliers sit at its last k columns). With ``T`` (N,6,6) the frames are
+    ``q_n exp(w)`` of a time step and the unknowns its increments ``w``: the columns of
+    ``x_a, x_b`` are multiplied by ``T_SE3(w)`` of their node (the chain rule of S61)."""
     s = model.structure
     idx = jnp.asarray(members)
     a = jnp.asarray([s.joints[j][1] for j in members])
@@ -109,8 +111,12 @@ def _joint_values_and_jacobians(model, R, p, mu, kind, members, k, z):
         return value, jac
 
     mu_of = mu[jnp.asarray(z[:, 12:]) - 6 * len(s.coupling_nodes)]
-    return jax.vmap(one)(R[a], p[a], R[b], p[b], mu_of, model.joint_offset_a[idx],
-                         model.joint_offset_b[idx], model.joint_rotation[idx])
+    value, jac = jax.vmap(one)(R[a], p[a], R[b], p[b], mu_of, model.joint_offset_a[idx],
+                               model.joint_offset_b[idx], model.joint_rotation[idx])
+    if T is not None:
+        jac = jnp.concatenate([jac[:, :, :6] @ T[a], jac[:, :, 6:12] @ T[b], jac[:, :, 12:]],
+                              axis=2)
+    return value, jac
 
 
 def _in_chain(structure) -> np.ndarray:
@@ -139,9 +145,11 @@ def _residuals(model, r, joint_values):
     return r, r_z * _coupling_mask(s, mask)
 
 
-def couple(model, R, p, mu, r, blocks) -> Coupled:
+def couple(model, R, p, mu, r, blocks, T=None) -> Coupled:
     """The bordered system at frames (R, p) (N,...) and multipliers ``mu`` (M,), from the
-    rods' residual ``r`` (N,6) and tangent ``blocks`` (held dofs already identity rows)."""
+    rods' residual ``r`` (N,6) and tangent ``blocks`` (held dofs already identity rows).
+    ``T`` (N,6,6): the nodes' ``T_SE3(w)`` when the unknowns are the increments ``w`` of a
+    time step (the blocks then already carry it, spec S61); None in statics."""
     s = model.structure
     mask = s.free_mask()
     m = coupling_count(s)
@@ -171,7 +179,7 @@ def couple(model, R, p, mu, r, blocks) -> Coupled:
     upper, lower = upper * link[:, None, None], lower * link[:, None, None]
     values = []
     for kind, members, k, is_rod, node, dof, z in _groups(s):
-        value, jac = _joint_values_and_jacobians(model, R, p, mu, kind, members, k, z)
+        value, jac = _joint_values_and_jacobians(model, R, p, mu, kind, members, k, z, T)
         values.append(value)
         rod = jnp.asarray(is_rod, p.dtype)                  # (J, 12 + k)
         free = mask[node, dof] * rod
@@ -231,3 +239,26 @@ def violation_norm(model, r_z):
         gaps = gaps + jnp.sum((g[:3] / model.char_length) ** 2) + jnp.sum(g[3:] ** 2)
         start += joint_terms.SIZES[kind]
     return forces, jnp.sqrt(gaps)
+
+
+def constraint_curvature(model, R, p, v):
+    """``d^2/dt^2 g(q exp(t v))`` at ``t = 0`` (M,), in joint order: the velocity part of the
+    joints' acceleration constraint ``G vdot + g''[v, v] = 0`` (``G`` the constraint
+    Jacobian in the right perturbations), for consistent start accelerations; v (N,6) the
+    nodal body velocities. Uses :func:`simsoft_jax.lie.compose_exp_quadratic`, exact to
+    second order."""
+    s = model.structure
+    out = []
+    for j, (kind, a, b) in enumerate(s.joints):
+        def along(t, kind=kind, a=a, b=b, j=j):
+            Ra, pa = lie.compose_exp_quadratic(R[a], p[a], t * v[a])
+            Rb, pb = lie.compose_exp_quadratic(R[b], p[b], t * v[b])
+            return joint_terms.constraint(kind, Ra, pa, Rb, pb, model.joint_offset_a[j],
+                                          model.joint_offset_b[j], model.joint_rotation[j])
+
+        def slope(t, along=along):
+            return jax.jvp(along, (t,), (jnp.ones_like(t),))[1]
+
+        t0 = jnp.zeros((), p.dtype)
+        out.append(jax.jvp(slope, (t0,), (jnp.ones_like(t0),))[1])
+    return jnp.concatenate(out) if out else jnp.zeros(0, p.dtype)

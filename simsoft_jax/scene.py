@@ -148,7 +148,7 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
     masses = parse_masses(_array_of_tables(raw, "masses"), rods, _node)
     bodies = parse_bodies(_array_of_tables(raw, "bodies"), rods)
     joints = parse_joints(_array_of_tables(raw, "joints"), rods, bodies, _node)
-    check_mechanism(solver.kind, bodies, joints)
+    check_mechanism(solver.kind, bodies, joints, constraints)
     profile = lambda value, path: _parse_profile(value, path, base_dir)  # noqa: E731
     tendons = parse_tendons(_array_of_tables(raw, "tendons"), rods, profile,
                             solver.kind == "dynamic")

@@ -90,14 +90,26 @@ def jointed_rods(joints: tuple) -> set:
     return {end.rod for j in joints for end in (j.a, j.b) if end.rod is not None}
 
 
-def check_mechanism(kind: str, bodies: tuple, joints: tuple) -> None:
-    """Bodies and joints are solved in statics only (for now), and every body needs a
-    joint (a free body has no equilibrium)."""
-    if (bodies or joints) and kind != "static":
-        fail("joints" if joints else "bodies", "bodies and joints are supported in static "
-             "scenes only (solver.kind = \"static\"); dynamics with joints is not built yet")
+def check_mechanism(kind: str, bodies: tuple, joints: tuple, constraints: tuple = ()) -> None:
+    """Every body needs a joint (bodies act on rods only through joints; a free body has
+    no static equilibrium). In dynamics a body that is not welded needs a mass and a
+    positive definite inertia (a ball joint leaves its rotation to its own inertia), and
+    joints do not combine with drives that slide (``slides_along``)."""
     attached = {end.body for j in joints for end in (j.a, j.b)}
+    welded = {end.body for j in joints if j.kind == "weld" for end in (j.a, j.b)}
     for i, body in enumerate(bodies):
         if body.name not in attached:
-            fail(index("bodies", i), f"body {body.name!r} has no joint (a free body has no "
-                 "static equilibrium)")
+            fail(index("bodies", i), f"body {body.name!r} has no joint (bodies act on rods "
+                 "only through joints, and a free body has no static equilibrium)")
+        if kind == "dynamic" and body.name not in welded:
+            if body.mass <= 0.0:
+                fail(join(index("bodies", i), "mass"), "a body without a weld needs a mass "
+                     "> 0 in a dynamic scene (nothing else sets its acceleration)")
+            if np.any(np.linalg.eigvalsh(0.5 * (body.inertia + body.inertia.T)) <= 0.0):
+                fail(join(index("bodies", i), "inertia"), "a body without a weld needs a "
+                     "positive definite inertia in a dynamic scene (its rotation is free)")
+    if joints and kind == "dynamic":
+        for i, c in enumerate(constraints):
+            if getattr(c, "slides_along", None) is not None:
+                fail(join(index("constraints", i), "slides_along"), "a sliding drive and "
+                     "joints in one dynamic scene are not supported yet")

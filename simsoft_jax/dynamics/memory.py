@@ -12,31 +12,38 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from ..linalg import Factors, factorize
+from ..linalg import CoupledFactors, factorize_coupled
 
 
 class NewtonMemory(NamedTuple):
-    """factors: the factorized iteration matrix (see :func:`linalg.factorize`); h: the
+    """factors: the factorized iteration matrix (see :func:`linalg.factorize_coupled`; no
+    couplings without joints); h: the
     step size (s) it was built for; renew: rebuild it at the start of the next step (the
     last step had to rebuild it mid-way); vd_history (2,N,6): the accelerations one and two
     accepted steps back; h_history (2,): the sizes (s) of the last and the one-but-last
-    accepted steps (0: none yet), for :func:`predicted_increment`."""
-    factors: Factors
+    accepted steps (0: none yet), for :func:`predicted_increment`; multipliers (M,): the
+    joint multipliers of the last accepted step, the next step's guess (M = 0 without
+    joints)."""
+    factors: CoupledFactors
     h: jax.Array
     renew: jax.Array
     vd_history: jax.Array
     h_history: jax.Array
+    multipliers: jax.Array
 
 
-def empty_newton_memory(n_nodes: int) -> NewtonMemory:
+def empty_newton_memory(n_nodes: int, couplings: int = 0, multipliers: int = 0
+                        ) -> NewtonMemory:
     """A :class:`NewtonMemory` of the right shapes with no history (the matrix is built at
-    first use)."""
-    n = n_nodes
+    first use): ``couplings`` m unknowns beside the N nodes' chains, of which the last
+    ``multipliers`` are joint multipliers (:mod:`simsoft_jax.mechanisms`)."""
+    n, m = n_nodes, couplings
     blocks = (jnp.zeros((n, 6, 6)), jnp.zeros((n - 1, 6, 6)), jnp.zeros((n - 1, 6, 6)))
-    shapes = jax.eval_shape(factorize, blocks)
+    shapes = jax.eval_shape(factorize_coupled, blocks, jnp.zeros((n, 6, m)),
+                            jnp.zeros((m, n, 6)), jnp.zeros((m, m)))
     zeros = jax.tree_util.tree_map(lambda x: jnp.zeros(x.shape, x.dtype), shapes)
     return NewtonMemory(zeros, jnp.asarray(-1.0), jnp.asarray(True), jnp.zeros((2, n, 6)),
-                        jnp.zeros(2))
+                        jnp.zeros(2), jnp.zeros(multipliers))
 
 
 def remember_step(memory: NewtonMemory, vd, h, accepted) -> NewtonMemory:

@@ -14,8 +14,9 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
+from .. import mechanisms
 from ..batched import any_lane, select
-from ..linalg import Factors, factorize, implicit_solve, solve_factored
+from ..linalg import CoupledFactors, factorize_coupled, implicit_solve_coupled, solve_coupled
 from ..drives import held_increments, slide_maps
 from ..statics import step_norm, weighted_norm
 from ..status import Status
@@ -34,20 +35,28 @@ class _NewtonCarry(NamedTuple):
     """Carry of :func:`newton_step`: the increment w, iterations so far, status (-1
     running, else a Status code), the factors in use and whether to rebuild them (fresh),
     the size of the last kept correction (previous), whether the matrix was rebuilt in
-    this step (rebuilt), and the weighted residual norm at the last iterate."""
+    this step (rebuilt), the weighted residual norm at the last iterate, and the joint
+    multipliers mu (M,)."""
     w: jax.Array
     iterations: jax.Array
     status: jax.Array
-    factors: Factors
+    factors: CoupledFactors
     fresh: jax.Array
     previous: jax.Array
     rebuilt: jax.Array
     residual: jax.Array
+    mu: jax.Array
+
+
+def _unknowns(structure, x, z):
+    """Nodal increments (N,6) and multipliers (M,) from the bordered solution (x, z)."""
+    return mechanisms.split(structure, x, z) if structure.joints else (x, z)
 
 
 class StepResult(NamedTuple):
     """Outcome of one Newton solve: increment w (N,6), iterations, status (Status code),
-    residual (weighted norm at the last iterate, N), memory (with the matrix in use)."""
+    residual (weighted norm at the last iterate, N), memory (with the matrix in use and,
+    after a converged solve, its joint multipliers)."""
     w: jax.Array
     iterations: jax.Array
     status: jax.Array
@@ -70,7 +79,11 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     with the observed contraction ``theta`` (``|dw|`` itself at the first iteration), is
     below the tolerance. Fails (status) when a fresh matrix gives a non-finite correction
     (NONFINITE) or one that takes a nodal rotation increment to pi/2 (OFF_BRANCH), or at
-    ``max_iterations`` (MAX_ITERATIONS).
+    ``max_iterations`` (MAX_ITERATIONS). With joints the unknowns are ``w`` and the
+    joint multipliers (index-3 form, Arnold & Bruls 2007: the constraints ``g(q_{n+1}) = 0``
+    and forces ``G^T mu`` at ``t_{n+1}``), solved in the bordered system of
+    :mod:`simsoft_jax.mechanisms`; converged also needs the joints to hold to the
+    tolerance at the current iterate.
     """
     fns = step_functions(model, inert, settings.rho_inf, state, h, settings.tangent)
     mask = model.structure.free_mask()
@@ -79,19 +92,28 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     w0 = jnp.where(mask > 0, w0, held_increments(model, state, fns.t1))
     sliding = bool(model.structure.slide_drives)
 
+    def held(r_z):
+        """The joints hold at the current iterate (their gaps / char_length and rotations
+        below the tolerance): with a reused matrix the corrections of ``w`` can shrink
+        long before the constraints are met, so they are tested too."""
+        if not model.structure.joints:
+            return True
+        return mechanisms.violation_norm(model, r_z)[1] <= settings.tolerance
+
     def body(c: _NewtonCarry) -> _NewtonCarry:
-        r = fns.newton_residual(c.w)  # once in the program; the branch builds only the matrix
+        r, r_z = fns.system_residual(c.w, c.mu)  # once; the branch builds only the matrix
         # a branch also under vmap (any_lane): lanes that keep their matrix select it back
         factors = jax.lax.cond(
             any_lane(c.fresh),
-            lambda w, f: select(c.fresh, factorize(fns.residual_and_matrix(w)[1]), f),
-            lambda _, f: f, c.w, c.factors)
-        dw = -solve_factored(factors, r)
+            lambda w, mu, f: select(c.fresh, factorize_coupled(*fns.system(w, mu)[1:5]), f),
+            lambda _, __, f: f, c.w, c.mu, c.factors)
+        dw, dmu = _unknowns(model.structure, *solve_coupled(factors, -r, -r_z))
         if sliding:  # back from slide unknowns to increments (spec: slides_along)
             dw = jnp.einsum("nij,nj->ni", slide_maps(model, state.R, c.w)[1], dw)
         # cap nodal rotation corrections at pi/4 (spec 4.7.6): keeps Newton on the branch
         rot = jnp.max(jnp.linalg.norm(dw[:, 3:], axis=1))
-        dw = dw * jnp.minimum(1.0, 0.25 * jnp.pi / jnp.maximum(rot, 1e-300))
+        cap = jnp.minimum(1.0, 0.25 * jnp.pi / jnp.maximum(rot, 1e-300))
+        dw, dmu = dw * cap, dmu * cap
         size = step_norm(model, dw)
         finite = jnp.all(jnp.isfinite(dw))
         off_branch = jnp.max(jnp.linalg.norm((c.w + dw)[:, 3:], axis=1)) > 0.5 * jnp.pi
@@ -99,10 +121,12 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
         theta = size / c.previous
         reject = ~c.fresh & (bad | (theta >= 1.0))
         rebuild = reject | (~c.fresh & (theta > _CONTRACTION_LIMIT))
-        w_new = jnp.where(reject | ~finite, c.w, c.w + jnp.where(finite, dw, 0.0))
+        keep = reject | ~finite
+        w_new = jnp.where(keep, c.w, c.w + jnp.where(finite, dw, 0.0))
+        mu_new = jnp.where(keep, c.mu, c.mu + jnp.where(finite, dmu, 0.0))
         estimate = jnp.where(jnp.isfinite(c.previous) & (theta < _CONTRACTION_LIMIT),
                              size * theta / (1.0 - theta), size)
-        converged = ~reject & finite & (estimate <= settings.tolerance)
+        converged = ~reject & finite & (estimate <= settings.tolerance) & held(r_z)
         status = jnp.where(converged, Status.CONVERGED, _RUNNING)
         status = jnp.where((status == _RUNNING) & c.fresh & ~finite, Status.NONFINITE, status)
         status = jnp.where((status == _RUNNING) & c.fresh & off_branch, Status.OFF_BRANCH,
@@ -111,42 +135,45 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
                            Status.MAX_ITERATIONS, status)
         return _NewtonCarry(w_new, c.iterations + 1, status, factors, rebuild,
                             jnp.where(reject, c.previous, size), c.rebuilt | rebuild,
-                            weighted_norm(model, r))
+                            weighted_norm(model, r), mu_new)
 
     stale = memory.renew | (jnp.abs(memory.h - h) > 1e-9 * h)
     init = _NewtonCarry(w0, jnp.array(0), jnp.array(_RUNNING), memory.factors, stale,
-                        jnp.array(jnp.inf), jnp.array(False), jnp.array(jnp.inf))
+                        jnp.array(jnp.inf), jnp.array(False), jnp.array(jnp.inf),
+                        memory.multipliers)
     c = jax.lax.while_loop(lambda c: c.status == _RUNNING, body, init)
-    memory = memory._replace(factors=c.factors, h=jnp.asarray(h, jnp.float64),
-                             renew=c.rebuilt)
+    memory = memory._replace(
+        factors=c.factors, h=jnp.asarray(h, jnp.float64), renew=c.rebuilt,
+        multipliers=jnp.where(c.status == Status.CONVERGED, c.mu, memory.multipliers))
     return StepResult(c.w, c.iterations, c.status, c.residual, memory)
 
 
 @jax.custom_jvp
-def _implicit_increment(model, inert, settings, state, h, w):
-    """Identity on a converged step increment ``w``; its derivative is the implicit-function
-    one: ``dw_free = -J^-1 dF`` with the held dofs following the prescribed motion."""
+def _implicit_increment(model, inert, settings, state, h, w, mu):
+    """Identity on a converged step increment ``w`` (with its joint multipliers ``mu``);
+    its derivative is the implicit-function one: ``[dw_free; dmu] = -J^-1 dF`` (the
+    bordered system with joints) with the held dofs following the prescribed motion."""
     return w
 
 
 @_implicit_increment.defjvp
 def _implicit_increment_jvp(primals, tangents):
-    model, inert, settings, state, h, w = primals
+    model, inert, settings, state, h, w, mu = primals
     mask = model.structure.free_mask()
 
     def held(m, st, hh):
         return held_increments(m, st, st.t + hh)
 
     def F(m, ine, se, st, hh):  # residual with the free w frozen and the held w prescribed
-        residual = step_functions(m, ine, se.rho_inf, st, hh).residual
-        return residual(jnp.where(mask > 0, w, held(m, st, hh)))
+        fns = step_functions(m, ine, se.rho_inf, st, hh)
+        return fns.system_residual(jnp.where(mask > 0, w, held(m, st, hh)), mu)
 
     primal_args, tangent_args = (model, inert, settings, state, h), tangents[:5]
-    _, dF = jax.jvp(F, primal_args, tangent_args)
+    _, (dF, dF_z) = jax.jvp(F, primal_args, tangent_args)
     _, dheld = jax.jvp(held, (model, state, h), (tangents[0], tangents[3], tangents[4]))
-    blocks = step_functions(model, inert, settings.rho_inf, state, h,
-                            settings.tangent).residual_and_matrix(w)[1]
-    dw = implicit_solve(blocks, -dF)
+    system = step_functions(model, inert, settings.rho_inf, state, h,
+                            settings.tangent).system(w, mu)
+    dw, _ = _unknowns(model.structure, *implicit_solve_coupled(*system[1:5], -dF, -dF_z))
     return w, jnp.where(mask > 0, dw, dheld)
 
 
@@ -167,7 +194,7 @@ def attempt(model, inert, settings, state, h, differentiable, memory) -> Attempt
     res = newton_step(m, ine, se, st, hh, mem)
     w = res.w
     if differentiable:
-        w = _implicit_increment(model, inert, settings, state, h, w)
+        w = _implicit_increment(model, inert, settings, state, h, w, res.memory.multipliers)
     ok = res.status == Status.CONVERGED
     memory = remember_step(res.memory, st.vd, hh, ok)
     return Attempt(new_state(w), res.iterations, res.status, res.residual, memory)

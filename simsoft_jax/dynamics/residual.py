@@ -19,7 +19,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .. import element, inertia, lie
+from .. import element, inertia, lie, mechanisms
 from ..assembly import (_nodal_load, apply_constraints, assemble_blocks, assemble_vector,
                         dead_distributed_force, element_data, element_force_and_tangent,
                         element_poses, follower_distributed_load, nodal_load_and_tangent,
@@ -152,11 +152,18 @@ class StepFunctions(NamedTuple):
     """``F(w)`` pieces of one step of size h from a state (see :func:`step_functions`):
     new_state(w) -> State; residual(w) (N,6), held dofs zeroed; newton_residual(w): the
     residual of residual_and_matrix (sliding drives reduced), without the matrix;
-    residual_and_matrix(w) -> (residual, blocks); t1: the time at the end of the step."""
+    residual_and_matrix(w) -> (residual, blocks); t1: the time at the end of the step.
+    With joint multipliers ``mu`` (M,) (:mod:`simsoft_jax.mechanisms`; M = 0 without
+    joints): system_residual(w, mu) -> (r (N,6), r_z (m,)), the Newton residual with the
+    joints' forces and constraints at ``t1``; system(w, mu) -> the bordered iteration
+    matrix and residual (:class:`~simsoft_jax.mechanisms.Coupled`, empty couplings
+    without joints)."""
     new_state: object
     residual: object
     newton_residual: object
     residual_and_matrix: object
+    system_residual: object
+    system: object
     t1: jax.Array
 
 
@@ -192,4 +199,25 @@ def step_functions(model, inert, rho_inf, state: State, h,
         return residual_and_iteration_matrix(loaded, inert, s1.R, s1.p, s1.v, s1.vd, w,
                                              beta_p, gamma_p, slide, tangent)
 
-    return StepFunctions(new_state, residual, newton_residual, residual_and_matrix, t1)
+    joints = bool(model.structure.joints)
+
+    def system_residual(w, mu):
+        r = newton_residual(w)
+        if not joints:
+            return r, mu
+        s1 = new_state(w)
+        return mechanisms.residual(loaded, s1.R, s1.p, mu, r)
+
+    def system(w, mu):
+        r, blocks = residual_and_matrix(w)
+        if not joints:
+            n = r.shape[0]
+            return mechanisms.Coupled(r, blocks, jnp.zeros((n, 6, 0), r.dtype),
+                                      jnp.zeros((0, n, 6), r.dtype), jnp.zeros((0, 0), r.dtype),
+                                      mu)
+        s1 = new_state(w)
+        return mechanisms.couple(loaded, s1.R, s1.p, mu, r, blocks,
+                                 jax.vmap(lie.tangent_se3)(w))
+
+    return StepFunctions(new_state, residual, newton_residual, residual_and_matrix,
+                         system_residual, system, t1)

@@ -14,10 +14,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .. import element
+from .. import element, mechanisms
 from .._xla import jit
 from ..assembly import apply_constraints, assemble_blocks, attachments_and_tangents
-from ..linalg import block_solve
+from ..linalg import block_solve, factorize_coupled, solve_coupled
 from ..drives import reduce, slide_maps
 from ..loads import loads_at
 from ..model import Model
@@ -61,7 +61,10 @@ class Trajectory(NamedTuple):
 
 def initial_state(model: Model, t0=0.0) -> State:
     """Start state: model.R0/p0, velocities model.v0 and consistent accelerations from
-    ``M vdot_0 = -g(q_0, v_0, t_0)`` (spec S67); ``a_0 = vdot_0`` (S68)."""
+    ``M vdot_0 = -g(q_0, v_0, t_0)`` (spec S67); ``a_0 = vdot_0`` (S68). With joints the
+    accelerations also meet the joints' acceleration constraint, with multipliers ``mu``:
+    ``M vdot_0 + G^T mu = -g``, ``G vdot_0 = -g''[v_0, v_0]``
+    (:func:`simsoft_jax.mechanisms.constraint_curvature`)."""
     t0 = jnp.asarray(t0, jnp.float64)
     inert = element_inertia(model)
     zeros = jnp.zeros_like(model.v0)
@@ -76,6 +79,15 @@ def initial_state(model: Model, t0=0.0) -> State:
         C, B, mask = slide_maps(model, model.R0, zeros)
         g, blocks = apply_constraints(mask, *reduce(C, B, g, blocks))
         vd0 = jnp.einsum("nij,nj->ni", B, -block_solve(blocks, g))
+    elif s.joints:
+        g, blocks = apply_constraints(s.free_mask(), g, blocks)
+        mu = jnp.zeros(mechanisms.multiplier_count(s), g.dtype)
+        system = mechanisms.couple(model, model.R0, model.p0, mu, g, blocks)
+        nb = 6 * len(s.coupling_nodes)
+        r_z = system.r_z.at[nb:].set(
+            mechanisms.constraint_curvature(model, model.R0, model.p0, model.v0))
+        x, z = solve_coupled(factorize_coupled(*system[1:5]), -system.r, -r_z)
+        vd0 = mechanisms.split(s, x, z)[0]
     else:
         g, blocks = apply_constraints(s.free_mask(), g, blocks)
         vd0 = -block_solve(blocks, g)
@@ -137,7 +149,9 @@ def first_carry(model: Model, state: State) -> _StepCarry:
     an empty Newton memory."""
     return _StepCarry(state, jnp.array(False), jnp.array(jnp.nan),
                       jnp.array(int(Status.CONVERGED)), jnp.array(int(Status.NOT_RUN)),
-                      jnp.array(jnp.nan), empty_newton_memory(model.structure.n_nodes))
+                      jnp.array(jnp.nan), empty_newton_memory(
+                          model.structure.n_nodes, mechanisms.coupling_count(model.structure),
+                          mechanisms.multiplier_count(model.structure)))
 
 
 def stepper(model: Model, inert, settings: DynamicSettings, differentiable: bool):
