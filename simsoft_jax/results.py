@@ -129,13 +129,11 @@ class Result:
             warnings.warn(note, stacklevel=2)
 
     def _slack_tendons(self) -> tuple:
-        """Names of the displacement-controlled tendons whose solved tension is below 0."""
+        """Names of the displacement-controlled tendons whose solved tension is below 0
+        (at any saved time of a dynamic result)."""
         s = self.model.structure
-        if self.time is not None or not any(s.tendon_displaced):
-            return ()
-        return tuple(n for n, flag, t in zip(s.tendon_names, s.tendon_displaced,
-                                             np.asarray(self.raw.tendon_tension))
-                     if flag and t < 0.0)
+        return tuple(n for n, flag in zip(s.tendon_names, s.tendon_displaced)
+                     if flag and np.min(self.tendon_tension(n)) < 0.0)
 
     def _nodes(self, rod: str) -> slice:
         info = self.model.structure.rod(rod)
@@ -177,6 +175,8 @@ class Result:
         m = s.tendon_names.index(name)
         if self.time is None:   # solved for displacement-controlled tendons
             return float(self.raw.tendon_tension[m])
+        if s.tendon_displaced[m]:   # solved at every step: the rollout's multipliers
+            return np.asarray(self.raw.multipliers)[:, sum(s.tendon_displaced[:m])].copy()
         tension = float(self.model.tendon_tension[m])
         law = self.model.tendon_law
         return tension * np.asarray(jax.vmap(law.scales)(jnp.asarray(self.time)))[:, m]

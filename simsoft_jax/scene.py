@@ -151,7 +151,9 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
     check_mechanism(solver.kind, bodies, joints, constraints)
     profile = lambda value, path: _parse_profile(value, path, base_dir)  # noqa: E731
     tendons = parse_tendons(_array_of_tables(raw, "tendons"), rods, profile,
-                            solver.kind == "dynamic")
+                            solver.kind == "dynamic" and (bool(joints) or any(
+                                c.slides_along is not None for c in constraints
+                                if c.kind == "drive")))
     chambers = parse_chambers(_array_of_tables(raw, "chambers"), rods, profile)
     obstacles = parse_obstacles(_array_of_tables(raw, "obstacles"))
     contact = parse_contact(raw["contact"]) if "contact" in raw else None

@@ -95,10 +95,10 @@ def _check_pulls(profile, path):
         fail(path, "makes the tension negative (a tendon cannot push)")
 
 
-def parse_tendons(items: list, rods: dict, parse_profile, dynamic: bool) -> tuple:
+def parse_tendons(items: list, rods: dict, parse_profile, mechanism: bool) -> tuple:
     """``[[tendons]]`` -> :class:`~simsoft_jax.scene_specs.TendonSpec` tuple.
-    ``parse_profile(value, path)`` parses a ``profile`` table; ``dynamic``: the scene is
-    dynamic (displacement control is static only)."""
+    ``parse_profile(value, path)`` parses a ``profile`` table; ``mechanism``: the scene is
+    dynamic with joints or a sliding drive (no displacement control there yet)."""
     from .scene_specs import TendonSpec
 
     out, seen = [], set()
@@ -118,9 +118,9 @@ def parse_tendons(items: list, rods: dict, parse_profile, dynamic: bool) -> tupl
                      f"{tension}")
         else:
             displacement = number(item["displacement"], join(path, "displacement"))
-            if dynamic:
-                fail(join(path, "displacement"), "displacement control is supported in "
-                     "static scenes only (give tension for a dynamic run)")
+            if mechanism:
+                fail(join(path, "displacement"), "displacement control in a dynamic scene "
+                     "with joints or a sliding drive is not supported yet (give tension)")
         profile = _profile(item, path, parse_profile)
         _check_pulls(profile, join(path, "profile"))
         out.append(TendonSpec(name=name, rod=rod, from_node=a, to_node=b, routing=routing,

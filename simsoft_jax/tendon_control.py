@@ -44,13 +44,14 @@ def length_changes(model, R, p):
     return jnp.sum(member * change.T, axis=1)
 
 
-def _displaced(model):
-    return jnp.asarray([k for k, flag in enumerate(model.structure.tendon_displaced) if flag])
+def displaced(structure) -> tuple:
+    """Indices of the displacement-controlled tendons (static)."""
+    return tuple(k for k, flag in enumerate(structure.tendon_displaced) if flag)
 
 
 def _mismatch(solve, model, settings, t):
     """``(F(t) (K,), equilibrium)``: length changes minus the prescribed ones."""
-    idx = _displaced(model)
+    idx = jnp.asarray(displaced(model.structure))
     m = model.replace(tendon_tension=model.tendon_tension.at[idx].set(t))
     eq = solve(m, settings)
     return length_changes(m, eq.R, eq.p)[idx] - m.tendon_displacement[idx], eq
@@ -58,7 +59,7 @@ def _mismatch(solve, model, settings, t):
 
 def _newton(solve, model, settings, tolerance):
     """Newton on the tensions from zero; returns (tensions (K,), converged)."""
-    k = len(_displaced(model))
+    k = len(displaced(model.structure))
 
     def step(carry):
         t, _, it = carry
@@ -96,5 +97,5 @@ def solve_tensions(solve, model, settings, tolerance):
     settings = jax.lax.stop_gradient(settings)
     t, ok = _newton(solve, jax.lax.stop_gradient(model), settings, tolerance)
     t = _implicit_tensions(solve, model, settings, t)
-    idx = _displaced(model)
+    idx = jnp.asarray(displaced(model.structure))
     return model.replace(tendon_tension=model.tendon_tension.at[idx].set(t)), ok

@@ -376,10 +376,13 @@ def test_duplicate_tendon_names_are_refused():
         sj.Scene.from_dict(rod_scene(4, tendons=[TENDON, TENDON]))
 
 
-def test_dynamic_displacement_control_is_refused():
+def test_dynamic_displacement_control_with_joints_is_refused():
     item = {k: v for k, v in TENDON.items() if k != "tension"}
-    scene = rod_scene(4, tendons=[dict(item, displacement=-0.005)])
+    scene = rod_scene(4, tendons=[dict(item, displacement=-0.005)],
+                      bodies=[{"name": "tip", "mass": 0.1, "position": [0.5, 0.0, 0.0]}],
+                      joints=[{"kind": "weld", "a": {"rod": "arm", "node": -1},
+                               "b": {"body": "tip"}}])
     scene["solver"] = {"kind": "dynamic", "dt": 0.01, "t_end": 0.1}
     with pytest.raises(ValueError, match=r"tendons\[0\]\.displacement: displacement control "
-                                         r"is supported in static scenes only"):
+                                         r"in a dynamic scene with joints"):
         sj.Scene.from_dict(scene)

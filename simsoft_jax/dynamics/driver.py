@@ -67,7 +67,8 @@ def block_steps(dt: float, t_end: float, save_every: int) -> tuple[np.ndarray, i
 def _chunk(model: Model, settings: DynamicSettings, carry, h, fresh):
     """Save blocks of step sizes ``h`` (B,) (0: an unused block, skipped) from ``carry``,
     or from the start state of ``model`` when ``fresh``. Returns the carry at the end and
-    per block ``(t, R, p, v, iterations (B, save_every), substeps (B, save_every))``."""
+    per block ``(t, R, p, v, iterations (B, save_every), substeps (B, save_every),
+    multipliers)``."""
     carry = jax.lax.cond(fresh, lambda c: first_carry(model, initial_state(model)),
                          lambda c: c, carry)
     inert = element_inertia(model)
@@ -82,7 +83,7 @@ def _chunk(model: Model, settings: DynamicSettings, carry, h, fresh):
         c, its, subs = jax.lax.cond((h_block > 0.0) & ~c.failed, run,
                                     lambda c: (c, idle, idle), c)
         st = c.state
-        return c, (st.t, st.R, st.p, st.v, its, subs)
+        return c, (st.t, st.R, st.p, st.v, its, subs, c.memory.multipliers)
 
     return jax.lax.scan(block, carry, h)
 
@@ -102,15 +103,16 @@ def _assemble(model: Model, outputs, carry, blocks: int, t_end: float, dt: float
     saved state of each of the first ``blocks`` blocks; cut after a failure."""
     R0, p0, v0, outputs, carry = jax.device_get((model.R0, model.p0, model.v0, outputs,
                                                  carry))
-    t, R, p, v, its, subs = (np.concatenate(x)[:blocks] for x in zip(*outputs))
+    t, R, p, v, its, subs, mu = (np.concatenate(x)[:blocks] for x in zip(*outputs))
     time_ = np.concatenate([[0.0], t])
     R, p, v = (np.concatenate([x0[None], x]) for x0, x in ((R0, R), (p0, p), (v0, v)))
+    mu = np.concatenate([np.zeros((1,) + mu.shape[1:]), mu])
     converged = not bool(carry.failed)
     status, cause = int(carry.status), int(carry.cause)
     failed_at, residual = float(carry.failed_at), float(carry.residual)
     if not converged:  # saved states after the failure repeat the last good one
         keep = int(np.searchsorted(time_, failed_at, side="left")) + 1
-        time_, R, p, v = time_[:keep], R[:keep], p[:keep], v[:keep]
+        time_, R, p, v, mu = time_[:keep], R[:keep], p[:keep], v[:keep], mu[:keep]
     elif interrupted:
         converged, status, cause = False, int(Status.INTERRUPTED), int(Status.NOT_RUN)
         failed_at, residual = float(time_[-1]), np.nan
@@ -118,7 +120,7 @@ def _assemble(model: Model, outputs, carry, blocks: int, t_end: float, dt: float
         time_[-1] = t_end  # round-off of the sum of the steps
     return Trajectory(time_, R, p, v, np.bool_(converged), np.float64(failed_at),
                       its.reshape(-1), subs.reshape(-1), carry.state, np.int64(status),
-                      np.int64(cause), np.float64(residual))
+                      np.int64(cause), np.float64(residual), mu)
 
 
 def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
@@ -158,7 +160,7 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
     if key not in compiled:  # the program and a placeholder carry of its shapes
         start = time.perf_counter()
         carry = _placeholder_carry(model)
-        out_tree = jax.tree_util.tree_structure((carry, (0,) * 6))
+        out_tree = jax.tree_util.tree_structure((carry, (0,) * 7))
         compiled[key] = (compile_stored(_chunk, (model, settings, carry, h[:per_chunk], True),
                                         out_tree, "rollout"), carry)
         compile_seconds = time.perf_counter() - start

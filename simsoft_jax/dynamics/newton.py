@@ -93,12 +93,15 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     sliding = bool(model.structure.slide_drives)
 
     def held(r_z):
-        """The joints hold at the current iterate (their gaps / char_length and rotations
-        below the tolerance): with a reused matrix the corrections of ``w`` can shrink
-        long before the constraints are met, so they are tested too."""
-        if not model.structure.joints:
-            return True
-        return mechanisms.violation_norm(model, r_z)[1] <= settings.tolerance
+        """The constraints hold at the current iterate: the joints' gaps / char_length and
+        rotations, or the displacement-controlled tendons' length mismatches /
+        char_length, below the tolerance (with a reused matrix the corrections of ``w``
+        can shrink long before the constraints are met, so they are tested too)."""
+        if model.structure.joints:
+            return mechanisms.violation_norm(model, r_z)[1] <= settings.tolerance
+        if r_z.size:
+            return jnp.max(jnp.abs(r_z)) <= settings.tolerance * model.char_length
+        return True
 
     def body(c: _NewtonCarry) -> _NewtonCarry:
         r, r_z = fns.system_residual(c.w, c.mu)  # once; the branch builds only the matrix

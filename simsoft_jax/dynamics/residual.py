@@ -19,7 +19,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .. import element, inertia, lie, mechanisms
+from .. import element, inertia, lie, mechanisms, tendon_control
 from ..assembly import (_nodal_load, apply_constraints, assemble_blocks, assemble_vector,
                         dead_distributed_force, element_data, element_force_and_tangent,
                         element_poses, follower_distributed_load, nodal_load_and_tangent,
@@ -153,11 +153,13 @@ class StepFunctions(NamedTuple):
     new_state(w) -> State; residual(w) (N,6), held dofs zeroed; newton_residual(w): the
     residual of residual_and_matrix (sliding drives reduced), without the matrix;
     residual_and_matrix(w) -> (residual, blocks); t1: the time at the end of the step.
-    With joint multipliers ``mu`` (M,) (:mod:`simsoft_jax.mechanisms`; M = 0 without
-    joints): system_residual(w, mu) -> (r (N,6), r_z (m,)), the Newton residual with the
-    joints' forces and constraints at ``t1``; system(w, mu) -> the bordered iteration
-    matrix and residual (:class:`~simsoft_jax.mechanisms.Coupled`, empty couplings
-    without joints)."""
+    With multipliers ``mu`` (M,) (:func:`border_sizes`): the joint multipliers
+    (:mod:`simsoft_jax.mechanisms`), or the tensions of displacement-controlled tendons
+    (the multipliers of their length constraints, :mod:`simsoft_jax.tendon_control`), or
+    none: system_residual(w, mu) -> (r (N,6), r_z (m,)), the Newton residual with the
+    joints' forces and constraints (or the tendons' forces and length mismatches, m) at
+    ``t1``; system(w, mu) -> the bordered iteration matrix and residual
+    (:class:`~simsoft_jax.mechanisms.Coupled`, empty couplings without either)."""
     new_state: object
     residual: object
     newton_residual: object
@@ -165,6 +167,17 @@ class StepFunctions(NamedTuple):
     system_residual: object
     system: object
     t1: jax.Array
+
+
+def border_sizes(structure) -> tuple[int, int]:
+    """``(m, M)``: the unknowns beside the rods' chains in a dynamic step and how many of
+    them are multipliers: the joints' coupling set (:mod:`simsoft_jax.mechanisms`), or
+    one tension per displacement-controlled tendon (the scene refuses both in one
+    dynamic scene), or none."""
+    if structure.joints:
+        return mechanisms.coupling_count(structure), mechanisms.multiplier_count(structure)
+    k = len(tendon_control.displaced(structure))
+    return k, k
 
 
 def step_functions(model, inert, rho_inf, state: State, h,
@@ -200,8 +213,23 @@ def step_functions(model, inert, rho_inf, state: State, h,
                                              beta_p, gamma_p, slide, tangent)
 
     joints = bool(model.structure.joints)
+    displaced = jnp.asarray(tendon_control.displaced(model.structure), dtype=int)
+
+    def pulled(mu):
+        """``loaded`` with the tensions ``mu`` of the displacement-controlled tendons."""
+        return loaded.replace(tendon_tension=loaded.tendon_tension.at[displaced].set(mu))
+
+    def length_mismatch(w):
+        """Length changes minus the prescribed ones at ``t1`` (K,), m."""
+        s1 = new_state(w)
+        target = model.tendon_displacement[displaced] * model.tendon_law.scales(t1)[displaced]
+        return tendon_control.length_changes(model, s1.R, s1.p)[displaced] - target
 
     def system_residual(w, mu):
+        if displaced.size:
+            s1 = new_state(w)
+            return (dynamic_residual(pulled(mu), inert, s1.R, s1.p, s1.v, s1.vd),
+                    length_mismatch(w))
         r = newton_residual(w)
         if not joints:
             return r, mu
@@ -209,6 +237,15 @@ def step_functions(model, inert, rho_inf, state: State, h,
         return mechanisms.residual(loaded, s1.R, s1.p, mu, r)
 
     def system(w, mu):
+        if displaced.size:   # the border: tendon forces per unit tension, length gradients
+            s1 = new_state(w)
+            r, blocks = residual_and_iteration_matrix(pulled(mu), inert, s1.R, s1.p, s1.v,
+                                                      s1.vd, w, beta_p, gamma_p, None, tangent)
+            B = jax.jacfwd(lambda t: dynamic_residual(pulled(t), inert, s1.R, s1.p, s1.v,
+                                                      s1.vd))(mu)
+            C = jax.jacrev(length_mismatch)(w) * model.structure.free_mask()
+            return mechanisms.Coupled(r, blocks, B, C, jnp.zeros((mu.size,) * 2, r.dtype),
+                                      length_mismatch(w))
         r, blocks = residual_and_matrix(w)
         if not joints:
             n = r.shape[0]

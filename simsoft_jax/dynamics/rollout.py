@@ -26,7 +26,7 @@ from ..terms.masses import spatial_inertia
 from ..status import Status, describe, poison_gradient, raise_if_failed
 from .memory import empty_newton_memory
 from .newton import advance, attempt
-from .residual import dynamic_residual, element_inertia
+from .residual import border_sizes, dynamic_residual, element_inertia
 from .scheme import DynamicSettings, State
 
 
@@ -38,7 +38,11 @@ class Trajectory(NamedTuple):
     (:class:`~simsoft_jax.status.Status` code); cause: why the failing Newton solve failed;
     residual: weighted residual norm (N) of the last Newton iterate of the failed step
     (nan if none). After a failure the state is frozen: the saved states after
-    ``failed_at`` repeat the last good state (the host driver :func:`rollout` cuts them)."""
+    ``failed_at`` repeat the last good state (the host driver :func:`rollout` cuts them).
+    multipliers (T,M): at the saved times, the joint multipliers or the tensions (N) of
+    displacement-controlled tendons (:func:`~.residual.border_sizes`; M = 0 without
+    either); the start's row is 0 (not solved: the start accelerations take the tendons
+    slack)."""
     time: jax.Array
     R: jax.Array
     p: jax.Array
@@ -51,6 +55,7 @@ class Trajectory(NamedTuple):
     status: jax.Array
     cause: jax.Array
     residual: jax.Array
+    multipliers: jax.Array | None = None
 
     def message(self) -> str:
         """How the run ended, in words (concrete, unbatched results)."""
@@ -150,8 +155,7 @@ def first_carry(model: Model, state: State) -> _StepCarry:
     return _StepCarry(state, jnp.array(False), jnp.array(jnp.nan),
                       jnp.array(int(Status.CONVERGED)), jnp.array(int(Status.NOT_RUN)),
                       jnp.array(jnp.nan), empty_newton_memory(
-                          model.structure.n_nodes, mechanisms.coupling_count(model.structure),
-                          mechanisms.multiplier_count(model.structure)))
+                          model.structure.n_nodes, *border_sizes(model.structure)))
 
 
 def stepper(model: Model, inert, settings: DynamicSettings, differentiable: bool):
@@ -190,18 +194,19 @@ def _simulate(model: Model, settings: DynamicSettings, state: State | None,
         c, (its, subs) = jax.lax.scan(jax.checkpoint(step) if differentiable else step, c,
                                       None, length=settings.save_every)
         st = c.state
-        return c, (st.t, st.R, st.p, st.v, its, subs)
+        return c, (st.t, st.R, st.p, st.v, its, subs, c.memory.multipliers)
 
     n_saves = settings.steps // settings.save_every
-    final, (t, R, p, v, its, subs) = jax.lax.scan(save_block, first_carry(model, state),
-                                                  None, length=n_saves)
+    first = first_carry(model, state)
+    final, (t, R, p, v, its, subs, mu) = jax.lax.scan(save_block, first, None,
+                                                      length=n_saves)
     cat = lambda first, rest: jnp.concatenate([first[None], rest])  # noqa: E731
     converged = ~final.failed
     R, p, v = (poison_gradient(converged, x, (model, state)) for x in
                (cat(state.R, R), cat(state.p, p), cat(state.v, v)))
     return Trajectory(cat(state.t, t), R, p, v, converged, final.failed_at,
                       its.reshape(-1), subs.reshape(-1), final.state, final.status,
-                      final.cause, final.residual)
+                      final.cause, final.residual, cat(first.memory.multipliers, mu))
 
 
 def energy(model: Model, R, p, v):
