@@ -59,6 +59,7 @@ FIGURES = {
     "princeton_sweep": ["tip_deflection_map.png"],
     "tendon_actuation": ["tendon_arcs.png"],
     "contact_catheter": ["snapshots.png", "contact_forces.png"],
+    "parallel_robot": ["shapes.png", "sway.png"],
 }
 
 
@@ -67,7 +68,7 @@ FIGURES = {
 # processes at once). Lane 0 holds the scenes that share compiled programs (spring steel
 # then silicone) and its cache is reused by tests/test_notebooks.py (same folder name).
 LANES = (("helical_motion", "spring_steel_rod", "silicone_body", "pure_bending",
-          "princeton_replay", "calibrate_princeton"),
+          "princeton_replay", "calibrate_princeton", "parallel_robot"),
          ("free_planar_rotation", "magellan_catheter", "bending_actuator",
           "dynamic_identification", "princeton_sweep", "tendon_actuation",
           "contact_catheter"))
@@ -146,6 +147,23 @@ def test_tendon_actuation(examples):
         exact = (1 + eps) * np.array([math.sin(k * L) / k, 0.0, (1 - math.cos(k * L)) / k])
         assert np.linalg.norm(np.subtract(tip, exact)) < 1e-10 * L
     assert s["max_error_rel"] < 1e-10
+
+
+def test_parallel_robot(examples):
+    """Two fixed-guided columns under a rigid welded plate: side stiffness ``24 EI / L^3``
+    (the elements' constant strains make the sway converge at second order, about
+    ``(L_e/L)^2`` short); the free sway period against Rayleigh's estimate with the
+    columns' effective mass 13/35; the welds hold."""
+    s, _ = examples["parallel_robot"].result()
+    assert s["converged"]
+    n, L, EI = s["elements"], s["length_m"], s["EI_Nm2"]
+    k = 24 * EI / L**3
+    for F, u in zip(s["forces_N"], s["sway_m"], strict=True):
+        assert abs(u / (F / k) - 1) < 1.2 / n**2 + 1e-3 * F / 0.2
+    mass = s["plate_kg"] + 2 * 13 / 35 * s["rho_A_kg_m"] * L
+    rayleigh = 2 * math.pi * math.sqrt(mass / k)
+    assert abs(s["period_s"] / rayleigh - 1) < 0.6 / n**2 + 3e-3
+    assert s["max_weld_gap_m"] < 1e-10 * L
 
 
 # ------------------------------------------------------------------------------ dynamics
