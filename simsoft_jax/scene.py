@@ -150,7 +150,7 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
     joints = parse_joints(_array_of_tables(raw, "joints"), rods, bodies, _node)
     check_mechanism(solver.kind, bodies, joints)
     profile = lambda value, path: _parse_profile(value, path, base_dir)  # noqa: E731
-    tendons = parse_tendons(_array_of_tables(raw, "tendons"), rods, profile,
+    tendons = parse_tendons(_array_of_tables(raw, "tendons"), rods, joints, profile,
                             solver.kind == "dynamic")
     chambers = parse_chambers(_array_of_tables(raw, "chambers"), rods, profile)
     obstacles = parse_obstacles(_array_of_tables(raw, "obstacles"))
