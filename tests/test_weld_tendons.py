@@ -149,6 +149,42 @@ def test_displacement_control_across_a_weld_solves_one_tension():
     assert result.tendon_tension("t") == pytest.approx(T, rel=1e-10)
 
 
+# -------------------------------------------------------------------------- routes
+
+def chain(**tendon):
+    """Rods a, b, c in a line along x, welded end to end, b turned around (rotated by pi
+    about z: its last node at a's tip, its z axis a's): a tendon at (0, r) in every
+    section meets itself at both welds."""
+    return {"solver": {"kind": "static"},
+            "rods": [rod("a", 3, 0.3), rod("b", 2, 0.2, (0.5, 0.0, 0.0), (0.0, 0.0, np.pi)),
+                     rod("c", 2, 0.2, (0.5, 0.0, 0.0))],
+            "constraints": [{"kind": "clamp", "rod": "a", "node": 0}],
+            "joints": [{"kind": "weld", "a": {"rod": "a", "node": -1},
+                        "b": {"rod": "b", "node": -1}},
+                       {"kind": "weld", "a": {"rod": "c", "node": 0},
+                        "b": {"rod": "b", "node": 0}}],
+            "tendons": [dict({"name": "t", "offset": [0.0, R_OFF], "tension": T}, **tendon)]}
+
+
+def test_a_route_through_a_middle_rod_and_its_reverse():
+    """From a's node 1 to c's node 1 the tendon passes a's elements 1, 2, both of b's
+    (against b's direction) and c's element 0; the reversed route is the same tendon (a
+    length has no direction); a routing on c that misses b's at their weld is refused."""
+    forward = build_model(sj.Scene.from_dict(chain(rod="a", from_node=1, to_rod="c",
+                                                   to_node=1)))
+    assert forward.structure.tendon_elements == ((False, True, True, True, True, True,
+                                                  False),)
+    backward = build_model(sj.Scene.from_dict(chain(rod="c", from_node=1, to_rod="a",
+                                                    to_node=1)))
+    assert backward.structure == forward.structure
+    np.testing.assert_array_equal(backward.tendon_offset, forward.tendon_offset)
+    with pytest.raises(ValueError, match=r"^tendons\[0\]: tendon 't' crosses the weld "
+                                         r"joints\[1\] from rod 'b' \(node 0\) to rod 'c' "
+                                         r"\(node 0\)"):
+        build_model(sj.Scene.from_dict(chain(rod="a", to_rod="c",
+                                             rod_offsets={"c": [0.0, 2 * R_OFF]})))
+
+
 # ------------------------------------------------------------------------- errors
 
 def test_routing_points_apart_at_the_weld_are_refused():
