@@ -3,7 +3,8 @@ the elements they pass, tensions, chamber pressures and areas, and their time la
 (:mod:`simsoft_jax.terms.tendons`, :mod:`simsoft_jax.terms.chambers`).
 
 Arc length ``s`` (m) along a rod is measured from its first node in the stress-free
-shape, nodes evenly spaced (``s_k = k L_rod / elements``). The offsets and their slopes
+shape, nodes evenly spaced (``s_k = k L_rod / elements``); a tendon across welded rods
+is sampled part by part, each in its own rod. The offsets and their slopes
 are evaluated here once (NumPy) and become traced Model arrays, so a routing can be
 changed, or differentiated, without recompiling.
 """
@@ -18,12 +19,12 @@ def quadrature_size(scene) -> int:
     """Gauss points per element for the tendons (static): 1 when every offset is constant
     (the length integrand is constant then), else 6, or 12 per helix turn inside the
     longest element, whichever is more."""
-    routings = [t.routing for t in getattr(scene, "tendons", ())]
-    if all(r.kind == "constant" for r in routings):
+    parts = [part for t in getattr(scene, "tendons", ()) for part in t.parts]
+    if all(part.routing.kind == "constant" for part in parts):
         return 1
-    turns = [rod.geometry.arc_length / rod.elements / abs(r.pitch)
-             for t, r in zip(scene.tendons, routings) if r.kind == "helix"
-             for rod in scene.rods if rod.name == t.rod]
+    specs = {rod.name: rod for rod in scene.rods}
+    turns = [specs[part.rod].geometry.arc_length / specs[part.rod].elements
+             / abs(part.routing.pitch) for part in parts if part.routing.kind == "helix"]
     return int(max([6] + [int(np.ceil(_SAMPLES_PER_TURN * x)) for x in turns]))
 
 
@@ -57,7 +58,8 @@ def routing_at(routing, s):
 
 
 def _members(items, rods, n_elements):
-    """Static membership: per item, a tuple of E bools (True for the elements it spans)."""
+    """Static membership of chambers: per item, a tuple of E bools (True for the elements
+    it spans)."""
     out = []
     for it in items:
         first = rods[it.rod].first_element
@@ -67,25 +69,58 @@ def _members(items, rods, n_elements):
     return tuple(out)
 
 
+def _spacing(scene):
+    """Rod name -> reference node spacing (m)."""
+    return {rod.name: rod.geometry.arc_length / rod.elements for rod in scene.rods}
+
+
+def check_crossings(scene, rods, R0, p0):
+    """Refuse a tendon whose routing points on the two sides of a weld it crosses are
+    apart in the start frames ``R0`` (N,3,3), ``p0`` (N,3) (m) by more than 1e-9 of the
+    scene's size: the weld then keeps them together, so the tendon's bridge across the
+    weld has zero length at every solution (the model of
+    :mod:`simsoft_jax.terms.tendons` sums the tendon's parts inside the rods only)."""
+    h = _spacing(scene)
+    scale = max(np.abs(p0).max(), 1.0)
+
+    def point(part, node):
+        offset, _ = routing_at(part.routing, np.array(node * h[part.rod]))
+        k = rods[part.rod].first_node + node
+        return p0[k] + R0[k] @ np.array([0.0, *offset])
+
+    for m, t in enumerate(getattr(scene, "tendons", ())):
+        for before, after, (joint, node_a, node_b) in zip(t.parts, t.parts[1:], t.crossings):
+            gap = np.linalg.norm(point(before, node_a) - point(after, node_b))
+            if gap > 1e-9 * scale:
+                raise ValueError(
+                    f"tendons[{m}]: tendon {t.name!r} crosses the weld joints[{joint}] "
+                    f"from rod {before.rod!r} (node {node_a}) to rod {after.rod!r} (node "
+                    f"{node_b}), but its routing points there are {gap:.3g} m apart at the "
+                    "start; they must meet (offset, rod_offsets), the weld then holds them "
+                    "together")
+
+
 def tendon_arrays(scene, rods, n_elements):
     """``(static, arrays)``: static structure (names, membership, quadrature size,
     displacement-controlled flags) and the tendon arrays of the Model: tension (M,),
-    displacement (M,), offset and slope (M,E,Q,2)."""
+    displacement (M,), offset and slope (M,E,Q,2), each part of a tendon sampled in its
+    own rod (arc length from that rod's first node)."""
     tendons = getattr(scene, "tendons", ())
     q = quadrature_size(scene)
     xi, _ = gauss_rule(q)
     offset = np.zeros((len(tendons), n_elements, q, 2))
     slope = np.zeros_like(offset)
-    specs = {r.name: r for r in scene.rods}
+    member = np.zeros((len(tendons), n_elements), bool)
+    h = _spacing(scene)
     for m, t in enumerate(tendons):
-        info, rod = rods[t.rod], specs[t.rod]
-        h = rod.geometry.arc_length / rod.elements
-        k = np.arange(t.from_node, t.to_node)
-        s = (k[:, None] + xi[None, :]) * h
-        e = info.first_element + k
-        offset[m, e], slope[m, e] = routing_at(t.routing, s)
+        for part in t.parts:
+            k = np.arange(part.first, part.last)
+            e = rods[part.rod].first_element + k
+            offset[m, e], slope[m, e] = routing_at(part.routing,
+                                                   (k[:, None] + xi[None, :]) * h[part.rod])
+            member[m, e] = True
     static = dict(tendon_names=tuple(t.name for t in tendons),
-                  tendon_elements=_members(tendons, rods, n_elements),
+                  tendon_elements=tuple(tuple(row) for row in member.tolist()),
                   tendon_quadrature=q,
                   tendon_displaced=tuple(t.displacement is not None for t in tendons))
     arrays = dict(tendon_tension=np.array([t.tension or 0.0 for t in tendons]),

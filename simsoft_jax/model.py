@@ -27,7 +27,7 @@ import numpy as np
 
 from . import geometry as geom
 from . import lie
-from .actuator_tables import chamber_arrays, tendon_arrays
+from .actuator_tables import chamber_arrays, check_crossings, tendon_arrays
 from .joint_layout import layout as joint_layout
 from .loads import LoadChannels, TimeLaws, build_channels, build_laws
 from .scene_contact import QUADRATURE_POINTS, contact_tables
@@ -431,6 +431,7 @@ def build_model(scene) -> Model:
     for load in loads:
         if load.element is not None:
             point_xi[by_name[load.rod].first_element + load.element] = load.xi
+    check_crossings(scene, by_name, R0, p0)
     tendons, tendon_data = tendon_arrays(scene, by_name, n_elements)
     chambers, chamber_data = chamber_arrays(scene, by_name, n_elements)
     at_node = [ld for ld in loads if ld.kind != "distributed_force" and ld.element is None]

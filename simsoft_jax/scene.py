@@ -150,7 +150,7 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
     joints = parse_joints(_array_of_tables(raw, "joints"), rods, bodies, _node)
     check_mechanism(solver.kind, bodies, joints, constraints)
     profile = lambda value, path: _parse_profile(value, path, base_dir)  # noqa: E731
-    tendons = parse_tendons(_array_of_tables(raw, "tendons"), rods, profile,
+    tendons = parse_tendons(_array_of_tables(raw, "tendons"), rods, joints, profile,
                             solver.kind == "dynamic" and (bool(joints) or any(
                                 c.slides_along is not None for c in constraints
                                 if c.kind == "drive")))

@@ -7,9 +7,10 @@ import numpy as np
 
 from ._validate import (check_keys, choice, fail, index, integer, join, number, positive,
                         readonly, string, table, vector)
+from .scene_tendon_paths import weld_path
 
-TENDON_KEYS = ("name", "rod", "from_node", "to_node", "offset", "tension", "displacement",
-               "profile")
+TENDON_KEYS = ("name", "rod", "from_node", "to_rod", "to_node", "offset", "rod_offsets",
+               "tension", "displacement", "profile")
 CHAMBER_KEYS = ("name", "rod", "from_node", "to_node", "area", "offset", "pressure",
                 "profile")
 ROUTING_KEYS = {"helix": ("kind", "radius", "pitch", "phase_deg"),
@@ -24,23 +25,80 @@ def _name(item, path, seen):
     return name
 
 
+def _rod(item, key, path, rods):
+    """The rod named by ``item[key]`` (a RodSpec)."""
+    name = item[key]
+    if not isinstance(name, str) or name not in rods:
+        fail(join(path, key), f"no rod named {name!r} (known: {', '.join(rods)})")
+    return rods[name]
+
+
+def _node(item, key, default, rod, path):
+    """``item[key]`` (default ``default``) resolved to a node of ``rod`` (negative from
+    the end)."""
+    n = rod.nodes
+    node = integer(item.get(key, default), join(path, key))
+    if not -n <= node < n:
+        fail(join(path, key), f"out of range for rod {rod.name!r} with {n} nodes "
+             f"(allowed {-n}..{n - 1}), got {node}")
+    return node % n
+
+
 def _span(item, path, rods):
     """(rod name, from_node, to_node): nodes resolved (negative from the end), from < to."""
-    name = item["rod"]
-    if not isinstance(name, str) or name not in rods:
-        fail(join(path, "rod"), f"no rod named {name!r} (known: {', '.join(rods)})")
-    n = rods[name].nodes
-    nodes = []
-    for key, default in (("from_node", 0), ("to_node", -1)):
-        node = integer(item.get(key, default), join(path, key))
-        if not -n <= node < n:
-            fail(join(path, key), f"out of range for rod {name!r} with {n} nodes "
-                 f"(allowed {-n}..{n - 1}), got {node}")
-        nodes.append(node % n)
-    if nodes[0] >= nodes[1]:
-        fail(join(path, "to_node"), f"must come after from_node (node {nodes[0]}), got "
-             f"node {nodes[1]}")
-    return name, nodes[0], nodes[1]
+    rod = _rod(item, "rod", path, rods)
+    a, b = (_node(item, key, default, rod, path)
+            for key, default in (("from_node", 0), ("to_node", -1)))
+    if a >= b:
+        fail(join(path, "to_node"), f"must come after from_node (node {a}), got node {b}")
+    return rod.name, a, b
+
+
+def _routings(item, path, names):
+    """Rod name -> RoutingSpec for the rods ``names`` a tendon passes: ``rod_offsets``
+    where it names the rod, else ``offset``."""
+    default = (parse_routing(item["offset"], join(path, "offset")) if "offset" in item
+               else None)
+    per_rod = table(item.get("rod_offsets", {}), join(path, "rod_offsets"))
+    out = {}
+    for name, value in per_rod.items():
+        if name not in names:
+            fail(join(join(path, "rod_offsets"), name), f"rod {name!r} is not on the "
+                 f"tendon's route ({', '.join(names)})")
+        out[name] = parse_routing(value, join(join(path, "rod_offsets"), name))
+    for name in names:
+        if name not in out and default is None:
+            fail(join(path, "offset"), f"required (the routing on rod {name!r}, which "
+                 "rod_offsets does not give)")
+        out.setdefault(name, default)
+    return out
+
+
+def _route(item, path, rods, joints):
+    """``(parts, crossings)`` of a tendon (:class:`~simsoft_jax.scene_specs.TendonSpec`):
+    in one rod from ``from_node`` to a later ``to_node``; with a ``to_rod``, along the
+    welds from ``rod`` to ``to_rod`` (:mod:`simsoft_jax.scene_tendon_paths`)."""
+    from .scene_specs import TendonPart
+
+    start = _rod(item, "rod", path, rods).name
+    end = _rod(item, "to_rod", path, rods).name if "to_rod" in item else start
+    if end == start:
+        _, a, b = _span(item, path, rods)
+        spans, steps = [(start, a, b)], ()
+    else:
+        steps = weld_path(start, end, joints, path)
+        nodes = ([_node(item, "from_node", 0, rods[start], path)]
+                 + [n for step in steps for n in (step[1], step[3])]
+                 + [_node(item, "to_node", -1, rods[end], path)])
+        names = [start] + [step[2] for step in steps]
+        spans = [(name, nodes[2 * k], nodes[2 * k + 1]) for k, name in enumerate(names)]
+        if all(a == b for _, a, b in spans):
+            fail(join(path, "to_node"), "the tendon passes no element (it starts and ends "
+                 "at the welds)")
+    routings = _routings(item, path, [name for name, _, _ in spans])
+    parts = tuple(TendonPart(rod=name, first=min(a, b), last=max(a, b),
+                             routing=routings[name]) for name, a, b in spans)
+    return parts, tuple((step[0], step[1], step[3]) for step in steps)
 
 
 def parse_routing(value, path):
@@ -95,8 +153,10 @@ def _check_pulls(profile, path):
         fail(path, "makes the tension negative (a tendon cannot push)")
 
 
-def parse_tendons(items: list, rods: dict, parse_profile, mechanism: bool) -> tuple:
-    """``[[tendons]]`` -> :class:`~simsoft_jax.scene_specs.TendonSpec` tuple.
+def parse_tendons(items: list, rods: dict, joints: tuple, parse_profile,
+                  mechanism: bool) -> tuple:
+    """``[[tendons]]`` -> :class:`~simsoft_jax.scene_specs.TendonSpec` tuple. ``joints``:
+    the scene's JointSpec tuple (a tendon with ``to_rod`` crosses its welds);
     ``parse_profile(value, path)`` parses a ``profile`` table; ``mechanism``: the scene is
     dynamic with joints or a sliding drive (no displacement control there yet)."""
     from .scene_specs import TendonSpec
@@ -104,10 +164,9 @@ def parse_tendons(items: list, rods: dict, parse_profile, mechanism: bool) -> tu
     out, seen = [], set()
     for i, item in enumerate(items):
         path = index("tendons", i)
-        check_keys(item, path, TENDON_KEYS, required=("name", "rod", "offset"))
+        check_keys(item, path, TENDON_KEYS, required=("name", "rod"))
         name = _name(item, path, seen)
-        rod, a, b = _span(item, path, rods)
-        routing = parse_routing(item["offset"], join(path, "offset"))
+        parts, crossings = _route(item, path, rods, joints)
         if ("tension" in item) == ("displacement" in item):
             fail(path, "give exactly one of tension, displacement")
         tension = displacement = None
@@ -123,8 +182,8 @@ def parse_tendons(items: list, rods: dict, parse_profile, mechanism: bool) -> tu
                      "with joints or a sliding drive is not supported yet (give tension)")
         profile = _profile(item, path, parse_profile)
         _check_pulls(profile, join(path, "profile"))
-        out.append(TendonSpec(name=name, rod=rod, from_node=a, to_node=b, routing=routing,
-                              tension=tension, displacement=displacement, profile=profile))
+        out.append(TendonSpec(name=name, parts=parts, crossings=crossings, tension=tension,
+                              displacement=displacement, profile=profile))
     return tuple(out)
 
 

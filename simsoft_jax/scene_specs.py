@@ -187,14 +187,26 @@ class RoutingSpec(SpecBase):
 
 
 @dataclass(frozen=True, eq=False)
-class TendonSpec(SpecBase):
-    """A tendon (``[[tendons]]``) from ``from_node`` to ``to_node`` (non-negative,
-    from < to) of a rod; exactly one of ``tension`` (N) and ``displacement`` (m)."""
-    name: str
+class TendonPart(SpecBase):
+    """The stretch of a tendon inside one rod: between its nodes ``first`` and ``last``
+    (non-negative, first <= last: the elements first .. last-1), at ``routing`` in that
+    rod's section frame."""
     rod: str
-    from_node: int
-    to_node: int
+    first: int
+    last: int
     routing: RoutingSpec
+
+
+@dataclass(frozen=True, eq=False)
+class TendonSpec(SpecBase):
+    """A tendon (``[[tendons]]``): its ``parts``, one per rod it passes, in order from
+    the start (``from_node``) to the termination (``to_node``); ``crossings``: per weld
+    between two consecutive parts, ``(joint index, node of the part before, node of the
+    part after)`` (one part and no crossing for a tendon in one rod); exactly one of
+    ``tension`` (N) and ``displacement`` (m)."""
+    name: str
+    parts: tuple
+    crossings: tuple
     tension: float | None
     displacement: float | None
     profile: ProfileSpec

@@ -16,6 +16,17 @@ chain rule as the elastic force ``P^T K (d - d0)/L`` (spec S37, S42); the tangen
 (along z) in a straight rod gives ``l_e = d_x + r d_wy``: the moment ``T r`` and the
 axial force ``T`` of the classical tendon-driven rod (Rucker & Webster 2011, IEEE T-RO
 27(6), with the tendon terminated at the end node).
+
+Across rods welded together a tendon is one cable with one tension: its length is the
+sum of its parts inside the rods it passes (each part in its own rod's elements and
+section frame), so ``T l`` adds the same per-element terms. Limit: the tendon's bridge
+across a weld (from its routing point on one side to the one on the other) is left out,
+which is exact only when the two points coincide; they must coincide at the start
+(checked at build time, :func:`simsoft_jax.actuator_tables.check_crossings`), and the
+weld keeps its two sides' relative pose, hence the points together and the bridge of
+zero length, at every solution (to the solver's tolerance on the weld). A kink there
+(the tangents of the two parts differ) then pushes on the weld point with
+``T (t_after - t_before)``, as a cable through a fixed eyelet does.
 """
 import jax
 import jax.numpy as jnp
