@@ -5,10 +5,15 @@ under a resting rod drags it by Coulomb friction until it moves with the plate. 
 share one structure (one compiled rollout); the references are closed forms derived in
 the tests.
 """
+import dataclasses
+
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import simsoft_jax as sj
+from simsoft_jax import dynamics as dy
 from simsoft_jax.terms import contact
 
 R_CONTACT, L_ROD, RHO_A, N = 0.02, 0.5, 0.5, 10
@@ -85,6 +90,34 @@ def test_a_sliding_plate_drags_a_resting_rod_by_friction():
     plate = res.contacts["plate"]
     np.testing.assert_allclose(plate["normal_force"][late], RHO_A * L_ROD * G, rtol=1e-2)
     assert plate["max_penetration"].max() < 1e-2 * R_CONTACT
+
+
+@pytest.mark.slow
+def test_bounce_speed_gradient_in_the_plane_speed():
+    """The derivative of the rod's speed after the bounce with respect to the plane's
+    speed (the rate of its motion's time law, a model array) through the differentiable
+    rollout: 2 by the collision law v = 2V (to 2 %), and the central difference of plain
+    rollouts (to 1e-4)."""
+    V, gap = 0.05, 0.005
+    model = sj.build_model(sj.Scene.from_dict(
+        _scene([0.0, 0.0, 1.0], V, 0.0, K_SOFT, -R_CONTACT - gap, 1.0)))
+    settings = dy.DynamicSettings(dt=0.01, steps=50, rho_inf=1.0, tolerance=1e-12)
+    law = model.obstacle_law
+
+    def speed(rate, differentiable):
+        m = model.replace(obstacle_law=dataclasses.replace(
+            law, params=law.params.at[0, 2].set(rate)))
+        traj = dy.simulate(m, settings, differentiable=differentiable)
+        v = jnp.einsum("nij,nj->ni", traj.R[-1], traj.v[-1, :, :3])
+        return v[:, 2].mean(), traj.converged
+
+    grad = float(jax.grad(lambda r: speed(r, True)[0])(jnp.asarray(V)))
+    step = 1e-5
+    (plus, ok_p), (minus, ok_m) = speed(V + step, False), speed(V - step, False)
+    assert bool(ok_p) and bool(ok_m)
+    fd = (float(plus) - float(minus)) / (2 * step)
+    assert grad == pytest.approx(2.0, rel=2e-2)
+    assert abs(grad - fd) <= 1e-4 * abs(fd)
 
 
 @pytest.mark.parametrize("change,message", [
