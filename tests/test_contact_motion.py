@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import dynamics as dy
+from simsoft_jax import assembly
+from simsoft_jax.loads import loads_at
 from simsoft_jax.terms import contact
 
 R_CONTACT, L_ROD, RHO_A, N = 0.02, 0.5, 0.5, 10
@@ -92,32 +93,32 @@ def test_a_sliding_plate_drags_a_resting_rod_by_friction():
     assert plate["max_penetration"].max() < 1e-2 * R_CONTACT
 
 
-@pytest.mark.slow
-def test_bounce_speed_gradient_in_the_plane_speed():
-    """The derivative of the rod's speed after the bounce with respect to the plane's
-    speed (the rate of its motion's time law, a model array) through the differentiable
-    rollout: 2 by the collision law v = 2V (to 2 %), and the central difference of plain
-    rollouts (to 1e-4)."""
-    V, gap = 0.05, 0.005
+def test_contact_force_of_a_moving_plane_and_its_gradient_in_the_speed():
+    """The rod at rest at z = 0, the plane starting at z = -r and rising at V: at time t
+    the rod sinks delta = V t into it everywhere (past the smoothing width eps), so the
+    plane pushes with k (delta - eps/2) per length, L k (V t - eps/2) in all, and the
+    derivative of that in V (through the motion's time law, a model array, evaluated at
+    t as in a time step) is L k t; both from the residual at t to 1e-9, the derivative
+    by forward mode against the closed form and a central difference."""
+    V, t, k = 0.05, 0.3, 1e4
     model = sj.build_model(sj.Scene.from_dict(
-        _scene([0.0, 0.0, 1.0], V, 0.0, K_SOFT, -R_CONTACT - gap, 1.0)))
-    settings = dy.DynamicSettings(dt=0.01, steps=50, rho_inf=1.0, tolerance=1e-12)
+        _scene([0.0, 0.0, 1.0], V, 0.0, k, -R_CONTACT, 1.0)))
     law = model.obstacle_law
 
-    def speed(rate, differentiable):
+    @jax.jit
+    def push(rate):
         m = model.replace(obstacle_law=dataclasses.replace(
             law, params=law.params.at[0, 2].set(rate)))
-        traj = dy.simulate(m, settings, differentiable=differentiable)
-        v = jnp.einsum("nij,nj->ni", traj.R[-1], traj.v[-1, :, :3])
-        return v[:, 2].mean(), traj.converged
+        r = assembly.residual(loads_at(m, jnp.asarray(t)), model.R0, model.p0)
+        return -jnp.sum(r[:, 2])            # residual side: the obstacle's force is -r
 
-    grad = float(jax.grad(lambda r: speed(r, True)[0])(jnp.asarray(V)))
-    step = 1e-5
-    (plus, ok_p), (minus, ok_m) = speed(V + step, False), speed(V - step, False)
-    assert bool(ok_p) and bool(ok_m)
-    fd = (float(plus) - float(minus)) / (2 * step)
-    assert grad == pytest.approx(2.0, rel=2e-2)
-    assert abs(grad - fd) <= 1e-4 * abs(fd)
+    eps = contact.SMOOTHING * R_CONTACT
+    assert V * t > eps
+    assert float(push(V)) == pytest.approx(L_ROD * k * (V * t - 0.5 * eps), rel=1e-9)
+    grad = float(jax.jacfwd(push)(jnp.asarray(V)))
+    assert grad == pytest.approx(L_ROD * k * t, rel=1e-9)
+    fd = (float(push(V + 1e-6)) - float(push(V - 1e-6))) / 2e-6
+    assert grad == pytest.approx(fd, rel=1e-7)
 
 
 @pytest.mark.parametrize("change,message", [
