@@ -172,3 +172,19 @@ def test_rod_pushed_into_a_curved_tube_takes_its_curvature():
     np.testing.assert_allclose(np.asarray(normal)[middle, 0] / h * RHO / compression, 1.0,
                                atol=1e-3)
     assert float(result.contacts["vessel"]["max_penetration"]) < 1e-3 * R_CONTACT
+
+
+@pytest.mark.parametrize("change,message", [
+    ({"start": [0.0, RHO, 0.0]}, "obstacles[0].start: must differ from center"),
+    ({"start": [0.0, RHO - R_BEND, 0.01]}, "obstacles[0].start: start - center must be normal"),
+    ({"radius": 0.2}, "obstacles[0].radius: must be below the bend radius"),
+    ({"angle": 7.0}, "obstacles[0].angle: must be in (0, 2 pi)"),
+    ({"angle": 0.0}, "obstacles[0].angle: must be > 0"),
+    ({"axis": [1.0, 0.0, 0.0]}, "obstacles[0].axis: unknown key"),
+])
+def test_bad_curved_tube_is_rejected_naming_the_key(change, message):
+    scene = pushed_scene()
+    scene["obstacles"][0].update(change)
+    with pytest.raises(ValueError, match=message.replace("[", r"\[").replace("]", r"\]")
+                       .replace("(", r"\(").replace(")", r"\)")):
+        sj.Scene.from_dict(scene)
