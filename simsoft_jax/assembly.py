@@ -205,7 +205,7 @@ def contact_data(model: Model):
 
     return contact.ContactData(model.contact_radius, model.contact_stiffness,
                                each(model.obstacles), each(model.obstacle_friction),
-                               each(model.slip_velocity))
+                               each(model.slip_velocity), each(model.obstacle_velocity))
 
 
 def element_poses(model: Model, R, p):

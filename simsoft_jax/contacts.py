@@ -14,6 +14,7 @@ import numpy as np
 
 from .assembly import contact_data, element_poses
 from .element import relative_twist
+from .loads import obstacles_at
 from .terms import contact
 
 
@@ -40,10 +41,18 @@ def _nodes_in_contact(structure, touching):
     return out
 
 
-def report(model, R, p) -> dict | None:
+def _at(model, t):
+    """``model`` with its moving obstacles where they are at time ``t`` (s)."""
+    if not model.structure.moving_obstacles:
+        return model
+    return model.replace(obstacles=obstacles_at(model, t)[0])
+
+
+def report(model, R, p, time=None) -> dict | None:
     """``{obstacle: {"normal_force", "force", "max_penetration", "nodes"}}`` at frames
     ``R`` (N,3,3), ``p`` (N,3) (a static state: floats, (3,) and ``{rod: [nodes]}``) or
-    (T,N,3,3), (T,N,3) (a trajectory: each with a leading time axis, ``nodes`` a list per
+    (T,N,3,3), (T,N,3) at the times ``time`` (T,) s (a trajectory: each with a leading
+    time axis, ``nodes`` a list per time; moving obstacles taken where they are at each
     time); None when the scene has no obstacles."""
     s = model.structure
     if not s.obstacle_kinds:
@@ -52,8 +61,9 @@ def report(model, R, p) -> dict | None:
     if p.ndim == 2:
         force, normal, pen, touch = jax.device_get(_per_obstacle(model, R, p))
     else:
+        time = jnp.zeros(p.shape[0]) if time is None else jnp.asarray(time, jnp.float64)
         force, normal, pen, touch = jax.device_get(jax.vmap(
-            lambda Ri, pi: _per_obstacle(model, Ri, pi))(R, p))
+            lambda Ri, pi, ti: _per_obstacle(_at(model, ti), Ri, pi))(R, p, time))
     out = {}
     for k, name in enumerate(s.obstacle_names):
         if p.ndim == 2:

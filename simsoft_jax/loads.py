@@ -17,6 +17,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import obstacles
+
 
 @dataclasses.dataclass(frozen=True)
 class LoadChannels:
@@ -120,16 +122,32 @@ def build_laws(profiles) -> TimeLaws:
                     *(jnp.asarray(a, jnp.float64) for a in profile_tables(profiles)))
 
 
+def obstacles_at(model, t):
+    """Parameter rows (K,ROW) and velocities (K,3) m/s of the obstacles at time ``t`` (s):
+    obstacle k moved rigidly by ``shift_k scale_k(t)`` (``model.obstacle_shift``, its time
+    law ``model.obstacle_law``), its velocity ``shift_k dscale_k/dt`` (autodiff in t)."""
+    s = model.structure
+    law = model.obstacle_law
+    scale, rate = jax.jvp(law.scales, (t,), (jnp.ones_like(t),))
+    rows = jnp.stack([obstacles.translate(kind, model.obstacles[k],
+                                          model.obstacle_shift[k] * scale[k])
+                      for k, kind in enumerate(s.obstacle_kinds)])
+    return rows, model.obstacle_shift * rate[:, None]
+
+
 def loads_at(model, t):
     """``model`` with its load arrays holding the total loads at time ``t`` (s): the
     constant ones plus every channel at its scale ``scale_k(t)``; tendon tensions and
-    chamber pressures times their time laws."""
+    chamber pressures times their time laws; moving obstacles where they are at ``t``
+    (:func:`obstacles_at`)."""
     model = _with_channels(model, scales(model.channels, t))
     changes = {}
     if model.structure.tendon_names:
         changes["tendon_tension"] = model.tendon_tension * model.tendon_law.scales(t)
     if model.structure.chamber_names:
         changes["chamber_pressure"] = model.chamber_pressure * model.chamber_law.scales(t)
+    if model.structure.moving_obstacles:
+        changes["obstacles"], changes["obstacle_velocity"] = obstacles_at(model, t)
     return model.replace(**changes) if changes else model
 
 

@@ -30,7 +30,7 @@ from . import lie
 from .actuator_tables import chamber_arrays, check_crossings, tendon_arrays
 from .joint_layout import layout as joint_layout
 from .loads import LoadChannels, TimeLaws, build_channels, build_laws
-from .scene_contact import QUADRATURE_POINTS, contact_tables
+from .scene_contact import QUADRATURE_POINTS, contact_tables, motion_profiles
 from .scene_mechanisms import jointed_rods
 from .sections import inertia_diagonal, stiffness_diagonal, viscosity_diagonal
 from .supports import AXES, unheld_message
@@ -81,6 +81,7 @@ class Structure:
     obstacle_kinds: tuple = ()    # their kinds (simsoft_jax.obstacles.KINDS); () = no contact
     contact_points: int = 0       # quadrature points per element for contact
     has_friction: bool = False    # some obstacle has friction > 0 (traced in dynamics)
+    moving_obstacles: bool = False  # some obstacle has a motion (traced in dynamics)
 
     @property
     def n_elements(self) -> int:
@@ -140,10 +141,14 @@ class Model:
     (:mod:`simsoft_jax.terms.tendons`, :mod:`simsoft_jax.actuator_tables`). chamber_pressure
     (C,) Pa, chamber_area (C,) m^2, chamber_offset (C,2) m, chamber_law: pressure
     chambers (:mod:`simsoft_jax.terms.chambers`).
-    contact_radius (E,) m and contact_stiffness (E,) N/m^2 per element, obstacles (K,7)
+    contact_radius (E,) m and contact_stiffness (E,) N/m^2 per element, obstacles (K,11)
     parameter rows (:mod:`simsoft_jax.obstacles`), obstacle_friction (K,), slip_velocity
     () m/s: the contact of :mod:`simsoft_jax.terms.contact` (read only when the structure
-    has obstacles).
+    has obstacles); obstacle_shift (K,3) m and obstacle_law
+    (:class:`~simsoft_jax.loads.TimeLaws`): the obstacles' motions, each moved by
+    ``shift * scale(t)`` (:func:`simsoft_jax.loads.obstacles_at`); obstacle_velocity (K,3)
+    m/s their velocities at the model's time (zeros; set with the rows by
+    :func:`simsoft_jax.loads.loads_at`, read by the friction).
     """
     structure: Structure
     R0: jax.Array
@@ -191,6 +196,9 @@ class Model:
     obstacles: jax.Array = None
     obstacle_friction: jax.Array = None
     slip_velocity: jax.Array = None
+    obstacle_shift: jax.Array = None
+    obstacle_law: TimeLaws = None
+    obstacle_velocity: jax.Array = None
 
     def replace(self, **changes) -> "Model":
         """A copy with some arrays replaced (same structure: no recompilation)."""
@@ -463,6 +471,7 @@ def build_model(scene) -> Model:
         contact_points=(scene.contact.quadrature_points if scene.contact else
                         QUADRATURE_POINTS) if obstacles else 0,
         has_friction=any(o.friction > 0.0 for o in obstacles),
+        moving_obstacles=any(o.profile is not None for o in obstacles),
     )
     arrays = dict(
         R0=R0, p0=p0, d0=d0, length=length, stiffness=K,
@@ -486,4 +495,5 @@ def build_model(scene) -> Model:
     return Model(structure=structure, channels=build_channels(timed, structure),
                  tendon_law=build_laws([t.profile for t in getattr(scene, "tendons", ())]),
                  chamber_law=build_laws([c.profile for c in getattr(scene, "chambers", ())]),
+                 obstacle_law=build_laws(motion_profiles(obstacles)),
                  **arrays)

@@ -119,7 +119,7 @@ class Result:
             self.failed_at = None
         self._R = np.asarray(raw.R)
         self._p = np.asarray(raw.p)
-        self.contacts = contacts.report(model, self._R, self._p)
+        self.contacts = contacts.report(model, self._R, self._p, self.time)
         self.slack_tendons = self._slack_tendons()
         if self.slack_tendons:
             note = (f"tendon{'s' * (len(self.slack_tendons) > 1)} "

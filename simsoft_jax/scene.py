@@ -155,7 +155,8 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
                                 c.slides_along is not None for c in constraints
                                 if c.kind == "drive")))
     chambers = parse_chambers(_array_of_tables(raw, "chambers"), rods, profile)
-    obstacles = parse_obstacles(_array_of_tables(raw, "obstacles"))
+    obstacles = parse_obstacles(_array_of_tables(raw, "obstacles"), profile,
+                                solver.kind == "dynamic")
     contact = parse_contact(raw["contact"]) if "contact" in raw else None
     warn_static_friction(obstacles, solver.kind)
     if solver.kind == "dynamic":

@@ -10,11 +10,18 @@ import numpy as np
 
 from ._validate import (SpecBase, check_keys, choice, fail, index, integer, join, number,
                         positive, readonly, require, string, table, vector)
+from .scene_specs import ProfileSpec
 
-OBSTACLE_KEYS = {"plane": ("point", "normal"), "sphere": ("center", "radius"),
-                 "capsule": ("a", "b", "radius"), "cylinder": ("axis_point", "axis", "radius"),
-                 "tube": ("axis_point", "axis", "radius")}
+# slot of each key in the parameter row (simsoft_jax.obstacles), per kind
+SLOTS = {"plane": {"point": 0, "normal": 3}, "sphere": {"center": 0, "radius": 6},
+         "capsule": {"a": 0, "b": 3, "radius": 6},
+         "cylinder": {"axis_point": 0, "axis": 3, "radius": 6},
+         "tube": {"axis_point": 0, "axis": 3, "radius": 6},
+         "curved_tube": {"center": 0, "normal": 3, "radius": 6, "start": 7, "angle": 10}}
+OBSTACLE_KEYS = {kind: tuple(slots) for kind, slots in SLOTS.items()}
 KINDS = tuple(OBSTACLE_KEYS)      # obstacle kinds (simsoft_jax.obstacles)
+ROW = 11                          # length of an obstacle's parameter row
+MOTION_KEYS = ("displacement", "profile")
 CONTACT_KEYS = ("radius", "self", "stiffness", "slip_velocity", "quadrature_points")
 STIFFNESS_FACTOR = 1.0e3       # default penalty: 1e3 EI / h^4 per element
 SLIP_VELOCITY = 1.0e-3         # m/s, default slip-velocity scale of the friction
@@ -25,8 +32,10 @@ QUADRATURE_POINTS = 4
 class ObstacleSpec(SpecBase):
     name: str
     kind: str                  # one of obstacles.KINDS
-    params: np.ndarray         # (7,) parameter row (simsoft_jax.obstacles)
+    params: np.ndarray         # (ROW,) parameter row (simsoft_jax.obstacles)
     friction: float            # Coulomb coefficient, >= 0
+    displacement: np.ndarray | None = None   # (3,) m, world: motion at profile scale 1
+    profile: object = None     # ProfileSpec of the motion (None: fixed obstacle)
 
 
 @dataclass(frozen=True, eq=False)
@@ -37,24 +46,57 @@ class ContactSpec(SpecBase):
     quadrature_points: int = QUADRATURE_POINTS
 
 
-def parameter_row(kind: str, values: dict) -> list:
-    """The parameter row (7,) of an obstacle (layout in :mod:`simsoft_jax.obstacles`): its
-    first point, its second point or direction (zeros for a sphere), its radius (0 for a
-    plane), from the validated ``values`` by key."""
-    keys = OBSTACLE_KEYS[kind]
-    vectors = [list(values[k]) for k in keys if k != "radius"] + [[0.0, 0.0, 0.0]]
-    return vectors[0] + vectors[1] + [values.get("radius", 0.0)]
+def parameter_row(kind: str, values: dict) -> np.ndarray:
+    """The parameter row (ROW,) of an obstacle (layout in :mod:`simsoft_jax.obstacles`)
+    from the validated ``values`` by key (unused slots 0)."""
+    row = np.zeros(ROW)
+    for key, slot in SLOTS[kind].items():
+        value = np.atleast_1d(values[key])
+        row[slot:slot + len(value)] = value
+    return row
 
 
-def parse_obstacles(items: list) -> tuple:
+def _check_curved_tube(values: dict, path: str) -> None:
+    """A curved tube's ``start`` off ``center``, in the plane normal to ``normal``, its
+    radius below the bend radius, its ``angle`` in (0, 2 pi)."""
+    r0 = np.asarray(values["start"]) - values["center"]
+    bend = np.linalg.norm(r0)
+    if bend == 0.0:
+        fail(join(path, "start"), "must differ from center (the bend radius is |start - "
+             "center|)")
+    if abs(np.dot(r0, values["normal"])) > 1e-9 * bend * np.linalg.norm(values["normal"]):
+        fail(join(path, "start"), "start - center must be normal to the arc's normal")
+    if values["radius"] >= bend:
+        fail(join(path, "radius"), f"must be below the bend radius |start - center| = "
+             f"{bend:g}, got {values['radius']}")
+    if not 0.0 < values["angle"] < 2.0 * np.pi:
+        fail(join(path, "angle"), f"must be in (0, 2 pi) rad, got {values['angle']}")
+
+
+def _parse_motion(value, path: str, profile, dynamic: bool):
+    """``motion = {displacement, profile}`` -> ((3,) m, ProfileSpec); a static scene is
+    rejected (a static solve cannot follow a time law)."""
+    m = table(value, path)
+    check_keys(m, path, MOTION_KEYS, required=MOTION_KEYS)
+    if not dynamic:
+        fail(path, "a static solve cannot follow an obstacle's motion; use solver.kind = "
+             "\"dynamic\" (or place the obstacle where it should be)")
+    return (vector(m["displacement"], join(path, "displacement")),
+            profile(m["profile"], join(path, "profile")))
+
+
+def parse_obstacles(items: list, profile=None, dynamic: bool = False) -> tuple:
     """``[[obstacles]]`` -> ObstacleSpec tuple (keys per kind: ``OBSTACLE_KEYS``; normals
-    and axes non-zero, a capsule's ends apart, radii > 0, friction >= 0, names unique)."""
+    and axes non-zero, a capsule's ends apart, radii > 0, a curved tube's geometry
+    consistent, friction >= 0, names unique; ``motion`` parsed with ``profile(value,
+    path)`` (the scene's time-law parser), dynamic scenes only)."""
     out, names = [], set()
     for i, item in enumerate(items):
         path = index("obstacles", i)
         kind = choice(require(item, path, "kind"), join(path, "kind"), KINDS)
         keys = OBSTACLE_KEYS[kind]
-        check_keys(item, path, ("name", "kind", "friction", *keys), required=("name", *keys))
+        check_keys(item, path, ("name", "kind", "friction", "motion", *keys),
+                   required=("name", *keys))
         name = string(item["name"], join(path, "name"))
         if not name or name in names:
             fail(join(path, "name"), f"must be a unique non-empty name, got {name!r}")
@@ -62,17 +104,21 @@ def parse_obstacles(items: list) -> tuple:
         values = {}
         for key in keys:
             kpath = join(path, key)
-            values[key] = positive(item[key], kpath) if key == "radius" else vector(item[key],
-                                                                                     kpath)
+            values[key] = (positive(item[key], kpath) if key in ("radius", "angle")
+                           else vector(item[key], kpath))
             if key in ("normal", "axis") and not np.any(values[key]):
                 fail(kpath, "must be a non-zero vector")
         if kind == "capsule" and np.array_equal(values["a"], values["b"]):
             fail(join(path, "b"), "must differ from a (a capsule's two ends)")
+        if kind == "curved_tube":
+            _check_curved_tube(values, path)
         friction = number(item.get("friction", 0.0), join(path, "friction"))
         if friction < 0.0:
             fail(join(path, "friction"), f"must be >= 0, got {friction}")
-        out.append(ObstacleSpec(name, kind, readonly(np.asarray(parameter_row(kind, values),
-                                                                float)), friction))
+        motion = (_parse_motion(item["motion"], join(path, "motion"), profile, dynamic)
+                  if "motion" in item else (None, None))
+        out.append(ObstacleSpec(name, kind, readonly(parameter_row(kind, values)), friction,
+                                *motion))
     return tuple(out)
 
 
@@ -115,7 +161,9 @@ def _section_radius(rod) -> float | None:
 
 def contact_tables(scene, stiffness, length):
     """Model tables of the contact: per element radius (E,) m and penalty stiffness (E,)
-    N/m^2, obstacle rows (K,7) and friction (K,), from the scene's rods, ``[contact]`` and
+    N/m^2, obstacle rows (K,ROW), friction (K,), motion displacements (K,3) m (zeros
+    for fixed obstacles; their time laws: :func:`motion_profiles`) and velocities (K,3)
+    (zeros: at rest until :func:`simsoft_jax.loads.loads_at` moves them), from the scene's rods, ``[contact]`` and
     obstacles; ``stiffness`` (E,6) or (E,6,6) and ``length`` (E,) the element tables (the
     default penalty is ``STIFFNESS_FACTOR max(EIy, EIz) / h^4``)."""
     spec = getattr(scene, "contact", None) or ContactSpec()
@@ -131,8 +179,17 @@ def contact_tables(scene, stiffness, length):
     EI = np.maximum(K[:, 4, 4], K[:, 5, 5]) if K.ndim == 3 else np.maximum(K[:, 4], K[:, 5])
     k = (np.full(len(length), spec.stiffness) if spec.stiffness is not None
          else STIFFNESS_FACTOR * EI / np.asarray(length) ** 4)
-    rows = np.reshape([o.params for o in obstacles], (-1, 7))
+    rows = np.reshape([o.params for o in obstacles], (-1, ROW))
+    shift = np.reshape([np.zeros(3) if o.displacement is None else o.displacement
+                        for o in obstacles], (-1, 3))
     return dict(contact_radius=np.asarray(radius, float), contact_stiffness=k,
                 obstacles=rows, obstacle_friction=np.array([o.friction for o in
                                                             obstacles], float),
+                obstacle_shift=shift, obstacle_velocity=np.zeros_like(shift),
                 slip_velocity=spec.slip_velocity)
+
+
+def motion_profiles(obstacles: tuple) -> list:
+    """The time law (ProfileSpec) of each obstacle's motion; a fixed obstacle's is the
+    constant law (with a zero displacement it does not move)."""
+    return [o.profile or ProfileSpec("constant") for o in obstacles]

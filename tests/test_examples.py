@@ -60,6 +60,8 @@ FIGURES = {
     "tendon_actuation": ["tendon_arcs.png"],
     "contact_catheter": ["snapshots.png", "contact_forces.png"],
     "parallel_robot": ["shapes.png", "sway.png"],
+    "catheter_bend": ["snapshots.png", "contact_force.png", "catheter_bend.gif"],
+    "gripper": ["grasp.png", "squeeze.png"],
 }
 
 
@@ -68,10 +70,10 @@ FIGURES = {
 # processes at once). Lane 0 holds the scenes that share compiled programs (spring steel
 # then silicone) and its cache is reused by tests/test_notebooks.py (same folder name).
 LANES = (("helical_motion", "spring_steel_rod", "silicone_body", "pure_bending",
-          "princeton_replay", "calibrate_princeton", "parallel_robot"),
+          "princeton_replay", "calibrate_princeton", "catheter_bend", "parallel_robot"),
          ("free_planar_rotation", "magellan_catheter", "bending_actuator",
           "dynamic_identification", "princeton_sweep", "tendon_actuation",
-          "contact_catheter"))
+          "contact_catheter", "gripper"))
 CACHE_NAMES = ("jax_compilation_cache", "jax_compilation_cache_lane1")
 
 
@@ -337,3 +339,56 @@ def test_contact_catheter(examples):
     assert max(max(c["max_penetration_m"]) for c in s["contacts"].values()) < (
         0.05 * s["contact_radius_m"])
 
+
+def test_catheter_bend(examples):
+    """The catheter pushed through the 90 degree bend stays in the vessel and follows it.
+    The vessel's centreline distance is written here from the geometry (inlet: |y| for
+    x < 0; bend: | |p - C| - R | in the quadrant; outlet: |x - R| for y > R): every node
+    but the tip, at every saved time, lies within a - r of it (to 2 % of r); the tip
+    within a - r plus its distance from the last contact station (h (1 - xi_4), xi_4 the
+    last of 4 Gauss points: contact is looked for at Gauss points, so a free end may poke
+    that far into a wall it meets at an angle). The catheter is pushed, not stretched:
+    its tip, ending in the outlet, is along the centreline (arc length from the bend's
+    start, where it started) within (a - r) times the bend angle of the push (the inner
+    and outer ways round the bend); its penetration at the contact stations stays below
+    5 % of r; the animation is a GIF."""
+    s, out = examples["catheter_bend"].result()
+    assert s["converged"]
+    p = np.asarray(s["positions_m"])[..., :2]
+    a, r, R = s["vessel_radius_m"], s["contact_radius_m"], s["bend_radius_m"]
+    x, y = p[..., 0], p[..., 1]
+    bend = np.abs(np.hypot(x, y - R) - R)
+    dist = np.where(x < 0.0, np.abs(y), np.where(y > R, np.abs(x - R), bend))
+    assert dist[:, :-1].max() <= a - r + 0.02 * r
+    assert dist.max() > 0.5 * (a - r)                 # it does lean on the walls
+    h = s["length_m"] / (p.shape[1] - 1)
+    xi_last = 0.5 * (1.0 + np.polynomial.legendre.leggauss(4)[0][-1])
+    assert dist[:, -1].max() <= a - r + h * (1.0 - xi_last)
+    tip = p[-1, -1]
+    assert tip[1] > R                                 # in the outlet at the end
+    s_tip = R * s["bend_angle_rad"] + (tip[1] - R)    # centreline arc length from the start
+    push, theta = s["push_m"], s["bend_angle_rad"]
+    assert abs(s_tip - push) <= (a - r) * theta
+    assert max(s["max_penetration_m"]) < 0.05 * r
+    assert (out / "catheter_bend.gif").read_bytes()[:6] in (b"GIF87a", b"GIF89a")
+
+
+def test_gripper(examples):
+    """Two tendon-driven fingers squeeze a fixed frictionless sphere. A tendon at the
+    constant offset d bends its finger by the uniform moment T d; held back by the
+    sphere's force F at x_c, the cantilever's deflection there is
+    T d x_c^2/(2 EI) - F x_c^3/(3 EI) = g (the gap), so F = 3 T d/(2 x_c) - 3 EI g/x_c^3
+    (small deflections: slopes below 0.05 here). Checked: the squeeze per finger at every
+    tension to 2 % of that (the contact point slides a little round the sphere and the
+    contact spreads over a few mm), the two fingers pressed symmetrically (the sphere's
+    net force on them has no y part, to 1e-9 of the squeeze), penetration below 1 % of
+    the finger's contact radius."""
+    s, _ = examples["gripper"].result()
+    T = np.asarray(s["tension_N"])
+    d, EI, xc, g = s["tendon_offset_m"], s["EI_Nm2"], s["sphere_x_m"], s["gap_m"]
+    expected = 1.5 * T * d / xc - 3.0 * EI * g / xc**3
+    assert (expected > 0).all()
+    np.testing.assert_allclose(s["squeeze_N"], expected, rtol=2e-2)
+    force = np.asarray(s["force_N"])
+    assert np.abs(force[:, 1]).max() <= 1e-9 * max(s["squeeze_N"])
+    assert max(s["max_penetration_m"]) < 1e-2 * s["finger_radius_m"]

@@ -33,8 +33,9 @@ pushes along ``+grad phi``). Tangents by ``jax.jacfwd`` (:mod:`.autodiff` and
 :func:`simsoft_jax.assembly.contact_and_tangent`).
 
 Friction (dynamics). The contact point moves with the centreline velocity
-``v = R(xi) (N(xi, d) v_e)_u`` (world); its part tangent to the obstacle
-``v_t = v - (v . n) n`` (``n = grad phi``) meets the regularized Coulomb line load
+``v = R(xi) (N(xi, d) v_e)_u`` (world), relative to the obstacle (translating with
+``v_o``) with ``v_r = v - v_o``; its part tangent to the obstacle
+``v_t = v_r - (v_r . n) n`` (``n = grad phi``) meets the regularized Coulomb line load
 ``f_t = -mu f_n v_t / sqrt(|v_t|^2 + v_s^2)`` (``f_n = psi'(delta)``, ``mu`` the
 obstacle's coefficient, ``v_s`` the slip-velocity scale, ``[contact] slip_velocity``):
 viscous-like below ``v_s``, Coulomb's ``mu f_n`` opposite to the slip above it. It is
@@ -55,13 +56,15 @@ SMOOTHING = 0.01   # eps / r: width of the cubic start of the penalty, fraction 
 
 class ContactData(NamedTuple):
     """An element's contact arrays: radius () m, stiffness () N/m^2 (penalty ``k``),
-    obstacles (K,7) parameter rows (:mod:`simsoft_jax.obstacles`), friction (K,) Coulomb
-    coefficients, slip_velocity () m/s."""
+    obstacles (K,11) parameter rows (:mod:`simsoft_jax.obstacles`), friction (K,) Coulomb
+    coefficients, slip_velocity () m/s, velocity (K,3) m/s of the (translating)
+    obstacles."""
     radius: jax.Array
     stiffness: jax.Array
     obstacles: jax.Array
     friction: jax.Array
     slip_velocity: jax.Array
+    velocity: jax.Array
 
 
 def quadrature(n: int):
@@ -121,8 +124,9 @@ def force(el, data: ContactData, length, kinds: tuple, n: int, friction: bool = 
     f = jnp.einsum("nk,nki->ni", load, normals)                  # world line load (n,3)
     if friction:
         v = jnp.einsum("nij,nj->ni", R, (maps @ el.ve)[:, :3])   # centreline velocity
-        vn = jnp.einsum("nki,ni->nk", normals, v)
-        vt = v[:, None, :] - vn[..., None] * normals               # (n,K,3)
+        v = v[:, None, :] - data.velocity[None]                    # relative (n,K,3)
+        vn = jnp.einsum("nki,nki->nk", normals, v)
+        vt = v - vn[..., None] * normals                           # (n,K,3)
         slip = jnp.sqrt(jnp.sum(vt**2, -1) + data.slip_velocity**2)
         f = f - jnp.einsum("nk,nki->ni", data.friction * load / slip, vt)
     local = jnp.einsum("nji,nj->ni", R, f)                         # R^T f
