@@ -4,8 +4,12 @@ physical pendulum; a body welded to a rod moves exactly like the same mass attac
 the node as a ``[[masses]]`` entry (offset and inertia included, large 3-D motion); a rod
 cut in two and welded moves like the whole rod; a closed loop (two rods welded to a
 platform) keeps its energy in free vibration, with an error that falls at second order in
-the time step; gradients through a rollout of the loop against central differences."""
+the time step; gradients through a rollout of the loop against central differences; the
+CLI writes the bodies' poses of a dynamic run."""
 import dataclasses
+import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -16,6 +20,7 @@ import jax.numpy as jnp
 import simsoft_jax as sj
 from simsoft_jax.dynamics import DynamicSettings, energy, simulate
 from simsoft_jax.model import build_model
+from conftest import REPO_ROOT
 
 
 def rod(name, length, elements, E=5.0e6, position=(0.0, 0.0, 0.0), rotation=None,
@@ -33,24 +38,29 @@ def clamp(name):
     return {"kind": "clamp", "rod": name, "node": 0}
 
 
+M_BOB, D_BOB, J_BOB, G, THETA0 = 2.0, 0.25, 0.01, 9.81, np.deg2rad(40.0)
+
+
+def pendulum_scene():
+    """A body (mass M_BOB, inertia J_BOB about its centre) hanging D_BOB below a ball joint
+    at a clamped rod node (the origin), at rest at THETA0; 2 s at dt = 5 ms, rho_inf 1."""
+    return {"solver": {"kind": "dynamic", "t_end": 2.0, "dt": 0.005, "rho_inf": 1.0},
+            "gravity": {"vector": [0.0, -G, 0.0]},
+            "rods": [rod("post", 0.1, 2, E=2e11, diameter=0.01, density=7800.0,
+                         rotation={"axis": [0, 0, 1], "angle_deg": 90.0})],
+            "constraints": [clamp("post")],
+            "bodies": [{"name": "bob", "mass": M_BOB, "inertia": (J_BOB * np.eye(3)).tolist(),
+                        "position": [D_BOB * np.sin(THETA0), -D_BOB * np.cos(THETA0), 0.0],
+                        "rotation": {"axis": [0, 0, 1], "angle_deg": np.rad2deg(THETA0)}}],
+            "joints": [{"kind": "ball", "a": {"rod": "post", "node": 0},
+                        "b": {"body": "bob", "offset": [0.0, D_BOB, 0.0]}}]}
+
+
 def test_ball_jointed_body_swings_with_the_exact_pendulum_period():
-    """A body (mass m, inertia Jc about its centre) hangs at distance d below a fixed point
-    by a ball joint (at a clamped rod node) and starts at rest at 40 degrees: the period
-    of the physical pendulum is ``4 sqrt(I_p / (m g d)) K(sin^2(theta0/2))`` with
-    ``I_p = Jc + m d^2`` (elliptic integral K). rho_inf = 1, dt = T/215: the scheme's
+    """The physical pendulum's period ``4 sqrt(I_p / (m g d)) K(sin^2(theta0/2))`` with
+    ``I_p = Jc + m d^2`` (elliptic integral K); dt = T/215 at rho_inf = 1: the scheme's
     period error is O(dt^2), about 1e-4 here. The joint holds to the solver tolerance."""
-    m, d, Jc, g, theta0 = 2.0, 0.25, 0.01, 9.81, np.deg2rad(40.0)
-    scene = {"solver": {"kind": "dynamic", "t_end": 2.0, "dt": 0.005, "rho_inf": 1.0},
-             "gravity": {"vector": [0.0, -g, 0.0]},
-             "rods": [rod("post", 0.1, 2, E=2e11, diameter=0.01, density=7800.0,
-                          rotation={"axis": [0, 0, 1], "angle_deg": 90.0})],
-             "constraints": [clamp("post")],
-             "bodies": [{"name": "bob", "mass": m, "inertia": (Jc * np.eye(3)).tolist(),
-                         "position": [d * np.sin(theta0), -d * np.cos(theta0), 0.0],
-                         "rotation": {"axis": [0, 0, 1], "angle_deg": 40.0}}],
-             "joints": [{"kind": "ball", "a": {"rod": "post", "node": 0},
-                         "b": {"body": "bob", "offset": [0.0, d, 0.0]}}]}
-    result = sj.run(scene)
+    result = sj.run(pendulum_scene())
     assert result.converged
     p, R = result.body_pose("bob")
     t = np.asarray(result.time)
@@ -59,11 +69,31 @@ def test_ball_jointed_body_swings_with_the_exact_pendulum_period():
     crossings = t[i] - x[i] * (t[i + 1] - t[i]) / (x[i + 1] - x[i])
     assert len(crossings) >= 3
     period = 2.0 * np.mean(np.diff(crossings))
-    I_p = Jc + m * d * d
-    exact = 4.0 * np.sqrt(I_p / (m * g * d)) * ellipk(np.sin(theta0 / 2) ** 2)
+    I_p = J_BOB + M_BOB * D_BOB**2
+    exact = 4.0 * np.sqrt(I_p / (M_BOB * G * D_BOB)) * ellipk(np.sin(THETA0 / 2) ** 2)
     assert abs(period / exact - 1.0) < 3e-4, (period, exact)
-    gap = p + np.einsum("tij,j->ti", R, [0.0, d, 0.0])      # the pivot is the origin
-    assert np.abs(gap).max() < 1e-10 * d
+    gap = p + np.einsum("tij,j->ti", R, [0.0, D_BOB, 0.0])      # the pivot is the origin
+    assert np.abs(gap).max() < 1e-10 * D_BOB
+
+
+def test_cli_run_writes_the_bodies_of_a_dynamic_scene(tmp_path):
+    """``simsoft-jax run`` on the pendulum: the result file lists the body's pose at every
+    saved time, and in it the joint point stays at the pivot."""
+    path, out = tmp_path / "pendulum.json", tmp_path / "out.json"
+    scene = pendulum_scene()
+    scene["solver"]["t_end"] = 0.2
+    path.write_text(json.dumps(scene))
+    proc = subprocess.run([sys.executable, "-m", "simsoft_jax.cli", "run", str(path), "-o",
+                           str(out)], capture_output=True, text=True, timeout=600,
+                          cwd=REPO_ROOT)
+    assert proc.returncode == 0, proc.stderr
+    d = json.loads(out.read_text())
+    position = np.asarray(d["bodies"]["bob"]["position"])
+    rotation = np.asarray(d["bodies"]["bob"]["rotation"])
+    assert position.shape == (len(d["time"]), 3) and rotation.shape == (len(d["time"]), 3, 3)
+    assert np.abs(position[-1] - position[0]).max() > 1e-3
+    gap = position + np.einsum("tij,j->ti", rotation, [0.0, D_BOB, 0.0])
+    assert np.abs(gap).max() < 1e-10 * D_BOB
 
 
 def test_welded_body_moves_like_the_same_attached_mass():
