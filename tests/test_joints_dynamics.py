@@ -126,14 +126,19 @@ def test_welded_body_moves_like_the_same_attached_mass():
 @pytest.mark.slow
 def test_rod_cut_in_two_and_welded_moves_like_the_whole_rod():
     """Two rods end to end, welded where they meet (a rod-rod weld: one end joins the
-    coupling set), swing under gravity like one rod with all their elements."""
+    coupling set), swing under gravity and a tendon pulled across the weld (tension ramp)
+    like one rod with all their elements and the same tendon."""
     common = {"solver": {"kind": "dynamic", "t_end": 0.2, "dt": 0.005, "rho_inf": 0.9},
               "gravity": {"vector": [0.0, -9.81, 0.3]}}
+    tendon = {"name": "t", "rod": "a", "offset": [0.004, 0.003], "tension": 0.5,
+              "profile": {"kind": "ramp", "t0": 0.0, "t1": 0.1}}
     cut = dict(common, rods=[rod("a", 0.2, 2), rod("b", 0.2, 2, position=(0.2, 0, 0))],
                constraints=[clamp("a")],
                joints=[{"kind": "weld", "a": {"rod": "a", "node": -1},
-                        "b": {"rod": "b", "node": 0}}])
-    whole = dict(common, rods=[rod("a", 0.4, 4)], constraints=[clamp("a")])
+                        "b": {"rod": "b", "node": 0}}],
+               tendons=[dict(tendon, to_rod="b")])
+    whole = dict(common, rods=[rod("a", 0.4, 4)], constraints=[clamp("a")],
+                 tendons=[tendon])
     a, b = sj.run(cut), sj.run(whole)
     assert a.converged and b.converged
     joined = np.concatenate([a.positions("a"), a.positions("b")[:, 1:]], axis=1)
