@@ -163,6 +163,12 @@ def _stack(trees):
     return jax.tree.map(lambda *leaves: jnp.stack(leaves), *trees)
 
 
+def _incline(R):
+    """Angles (rad) of the section axes above the world x-y plane, (n,3) from R (n,3,3):
+    ``asin`` of each axis's world z component."""
+    return jnp.arcsin(jnp.clip(R[:, 2, :], -1.0, 1.0))
+
+
 def predict_rows(obs: ObservationSet, R, p, R0, p0, base):
     """Predicted value (n,) of every observation row from the equilibria: ``R, p``
     (sum of nodes, 3, 3)/(.., 3) of all models concatenated, their start states ``R0,
@@ -179,7 +185,8 @@ def predict_rows(obs: ObservationSet, R, p, R0, p0, base):
     xr = pr + jnp.einsum("nij,nj->ni", Rr, c)
     position = jnp.where(has_ref[:, None], xi - xr, xi)
     rotation = jax.vmap(lambda a, b: lie.log_so3(a.T @ b))(Rr, Ri)
-    values = jnp.stack([position, xi - xr, rotation], axis=1)       # (n, 3 kinds, 3)
+    tilt = _incline(Ri) - _incline(Rr)
+    values = jnp.stack([position, xi - xr, rotation, tilt], axis=1)  # (n, 4 kinds, 3)
     n = len(obs.kind)
     return values[jnp.arange(n), obs.kind, obs.component]
 

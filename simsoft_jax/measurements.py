@@ -134,8 +134,9 @@ OPTIONAL_COLUMNS = ("offset_x", "offset_y", "offset_z", "std", "reference")
 QUANTITIES = {"x": ("position", 0), "y": ("position", 1), "z": ("position", 2),
               "ux": ("displacement", 0), "uy": ("displacement", 1),
               "uz": ("displacement", 2), "rx": ("rotation", 0), "ry": ("rotation", 1),
-              "rz": ("rotation", 2), "twist": ("rotation", 0)}
-KINDS = ("position", "displacement", "rotation")
+              "rz": ("rotation", 2), "twist": ("rotation", 0), "tilt_x": ("tilt", 0),
+              "tilt_y": ("tilt", 1), "tilt_z": ("tilt", 2)}
+KINDS = ("position", "displacement", "rotation", "tilt")
 
 
 class Observation(NamedTuple):
@@ -191,7 +192,11 @@ def read_observations(path) -> list[Observation]:
     ``x = p + R offset``. quantity: ``x``, ``y``, ``z`` (world position of the point, m),
     ``ux``, ``uy``, ``uz`` (its displacement, m), ``rx``, ``ry``, ``rz`` (rotation of
     the section, rad: components of ``log(R_ref^T R)``, i.e. about the reference
-    section's own axes), ``twist`` (= ``rx``, about the rod axis). value: the measured
+    section's own axes), ``twist`` (= ``rx``, about the rod axis), ``tilt_x``,
+    ``tilt_y``, ``tilt_z`` (change of the angle of the section's x, y or z axis above the
+    world x-y plane, rad: ``asin(e_z . R e_k) - asin(e_z . R_ref e_k)``; e.g. a wing's
+    twist as a test reads it from the heights of its leading and trailing edges, when
+    the chord lies along y and world z is up). value: the measured
     value (m or rad). std: its standard deviation (same unit; empty = 1, unweighted):
     residuals are divided by it. reference: optional name of the scene the row is
     relative to (the same rod and node there, e.g. the unloaded self-weight state):

@@ -53,6 +53,25 @@ def test_observations_of_a_twisted_strip_are_exact(tmp_path):
                                rtol=1e-10)
 
 
+def test_tilt_reads_twist_as_leading_and_trailing_edge_heights_do(tmp_path):
+    """A strip pitched down by theta at its clamp (base rotated about y) and twisted by
+    phi = T L / GJ: its tip section is ``R_y(theta) R_x(phi)``, so its chord (local y)
+    rises by ``asin(sin phi cos theta)`` above the horizontal, which ``tilt_y`` gives,
+    while ``twist`` (about the section's own axis) gives phi."""
+    T, theta = 3.0, 0.6
+    phi = T * L / GJ
+    scene = twisted("pitched", T).to_dict()
+    scene["rods"][0]["base"] = {"rotation": [0.0, theta, 0.0]}
+    scene["loads"][0]["frame"] = "local"          # the torque about the pitched axis
+    rows = ["pitched,strip,-1,,,,tilt_y,0,1,", "pitched,strip,-1,,,,twist,0,1,",
+            "pitched,strip,-1,,,,tilt_x,0,1,"]
+    (tmp_path / "obs.csv").write_text(HEADER + "\n".join(rows) + "\n")
+    obs = observation_set(tmp_path / "obs.csv", [sj.Scene.from_dict(scene)])
+    got = predict(obs, parse_groups("GJ"))
+    np.testing.assert_allclose(got, [np.arcsin(np.sin(phi) * np.cos(theta)), phi, 0.0],
+                               rtol=0, atol=1e-11)
+
+
 @pytest.mark.parametrize("row, match", [
     ("t3,strip,-1,,,,twirl,0,1,", "line 2, column quantity: unknown quantity 'twirl'"),
     ("t3,strip,-1,,,,uz,abc,1,", "line 2, column value: not a number"),
