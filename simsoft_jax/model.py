@@ -80,7 +80,7 @@ class Structure:
     obstacle_names: tuple = ()    # [[obstacles]] names, in scene order
     obstacle_kinds: tuple = ()    # their kinds (simsoft_jax.obstacles.KINDS); () = no contact
     contact_points: int = 0       # quadrature points per element for contact
-    has_friction: bool = False    # some obstacle has friction > 0 (traced in dynamics)
+    has_friction: bool = False    # some obstacle has friction > 0 (traced then)
 
     @property
     def n_elements(self) -> int:
@@ -143,7 +143,8 @@ class Model:
     contact_radius (E,) m and contact_stiffness (E,) N/m^2 per element, obstacles (K,7)
     parameter rows (:mod:`simsoft_jax.obstacles`), obstacle_friction (K,), slip_velocity
     () m/s: the contact of :mod:`simsoft_jax.terms.contact` (read only when the structure
-    has obstacles).
+    has obstacles); slip_displacement (E,) m: the slip scale of static friction
+    (:mod:`simsoft_jax.terms.static_friction`).
     """
     structure: Structure
     R0: jax.Array
@@ -191,6 +192,7 @@ class Model:
     obstacles: jax.Array = None
     obstacle_friction: jax.Array = None
     slip_velocity: jax.Array = None
+    slip_displacement: jax.Array = None
 
     def replace(self, **changes) -> "Model":
         """A copy with some arrays replaced (same structure: no recompilation)."""
