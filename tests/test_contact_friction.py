@@ -31,7 +31,6 @@ p_i| / h - 1)`` (no bending there: EI is tiny and the pieces are straight); on t
 the element's chord ``c`` is turned into its arc ``c (a/2) / sin(a/2)`` with ``a`` the
 angle between its end tangents.
 """
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
