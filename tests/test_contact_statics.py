@@ -314,6 +314,8 @@ def _with(**changes):
     ({"contact": {"radius": 0.01, "self": True}}, "contact.self: rod-rod and self contact"),
     ({"contact": {"radius": 0.0}}, "contact.radius: must be > 0"),
     ({"contact": {"quadrature_points": 0}}, "contact.quadrature_points: must be >= 1"),
+    ({"contact": {"radius": 0.01, "slip_displacement": 0.0}},
+     "contact.slip_displacement: must be > 0"),
     ({"contact": {"stiffnes": 1.0}}, "contact.stiffnes: unknown key"),
 ])
 def test_bad_contact_input_is_rejected_naming_the_key(change, message):
@@ -351,9 +353,3 @@ def test_cli_run_writes_contacts_into_the_result_file(lifted, tmp_path):
     np.testing.assert_allclose(table["force"], [0.0, 0.0, table["normal_force"]], atol=1e-9)
     assert 0.0 < table["max_penetration"] < 1e-3 * R_CONTACT
     assert written["drum"]["nodes"] == {"rod": []} and written["drum"]["normal_force"] == 0.0
-
-
-def test_static_scene_with_friction_warns_that_statics_ignores_it():
-    scene = _with(obstacles=[dict(WRAP["obstacles"][1], friction=0.2)])
-    with pytest.warns(UserWarning, match=r"obstacles\[0\].friction: static solves ignore"):
-        sj.Scene.from_dict(scene)
