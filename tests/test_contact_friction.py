@@ -97,6 +97,7 @@ def _tensions(R, p):
     return EA * (arc / H - 1.0)
 
 
+@pytest.mark.slow     # compiling the contact-with-friction solver: ~50 s on a loaded 2-core machine
 def test_capstan_tension_ratio_at_the_onset_of_sliding(capstan):
     """T1/T0 = exp(mu theta) to 2 % (held-piece tension from its stretch), the tension
     along the wrap T0 exp(mu phi) to 2 %, every wrap station slid by more than 10 u_s in
