@@ -1,8 +1,8 @@
 """Quasi-static friction (issue 14): the capstan equation for a flexible rod wrapped on a
 fixed rough drum, pulled at one end and clamped at the other, solved with load stepping
 and the regularized Coulomb law on the slip since the previous load level
-(:mod:`simsoft_jax.terms.static_friction`), and the derivative of the held-end tension
-in the friction coefficient against the capstan formula's.
+(:mod:`simsoft_jax.terms.static_friction`); and the friction of one element on a plane,
+sliding and sticking, against the resultant force and moment of its line load.
 
 The scene (one structure, compiled once): a drum of radius ``RC`` (axis y through the
 origin), a rod of contact radius ``R`` lying on it over the wrap angle ``THETA = pi``
@@ -31,6 +31,7 @@ p_i| / h - 1)`` (no bending there: EI is tiny and the pieces are straight); on t
 the element's chord ``c`` is turned into its arc ``c (a/2) / sin(a/2)`` with ``a`` the
 angle between its end tangents.
 """
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -122,3 +123,40 @@ def test_capstan_tension_ratio_at_the_onset_of_sliding(capstan):
     assert bool(frictionless.converged), frictionless.message()
     T = _tensions(np.asarray(frictionless.R), np.asarray(frictionless.p))
     np.testing.assert_allclose(T[1:NF - 1], T1, rtol=2e-3)
+
+
+@pytest.mark.parametrize("slip,share", [([100.0, 0.0, 0.0], 100.0 / np.sqrt(1.0 + 1e4)),
+                                        ([0.0, 0.01, 0.0], 0.01 / np.sqrt(1.0 + 1e-4)),
+                                        ([0.0, 30.0, 5.0], 30.0 / np.sqrt(1.0 + 900.0))])
+def test_friction_of_an_element_sliding_and_sticking_on_a_plane(slip, share):
+    """A straight element of length L lying on a plane (z = 0), sunk by 2 eps (normal line
+    load f_n = k (2 eps - eps/2)), its stations moved by the slip u (in units of u_s)
+    since the previous level: the friction is a uniform line load
+    -mu f_n u_t / sqrt(|u_t|^2 + u_s^2), so the nodal forces (residual side) sum to
+    mu f_n L u_t / sqrt(..) and their moment about node A is L/2 x that force. Sliding
+    (|u_t| = 100 u_s: Coulomb's mu f_n L to 5e-5), sticking (|u_t| = 0.01 u_s: a spring,
+    1 % of it), and a slip with a normal part (only the tangential part counts)."""
+    from simsoft_jax.terms import contact, element_state, static_friction
+    L, r, k, mu, us = 0.2, 0.01, 1.0e5, 0.4, 1.0e-6
+    eps = contact.SMOOTHING * r
+    data = contact.ContactData(jnp.asarray(r), jnp.asarray(k),
+                               jnp.asarray([[0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]]),
+                               jnp.asarray([mu]), jnp.asarray(1e-3))
+    RA, pA = jnp.eye(3), jnp.array([0.0, 0.0, r - 2.0 * eps])
+    pB = pA + jnp.array([L, 0.0, 0.0])
+    u = us * jnp.asarray(slip)
+
+    @jax.jit
+    def forces(u):
+        el = element_state(RA, pA, RA, pB, jnp.zeros(12), jnp.zeros(12))
+        before = static_friction.stations(RA, pA, el.d, 4) - u
+        return static_friction.force(el, before, us, data, L, ("plane",), 4)
+
+    f = forces(u)
+    fn = k * 1.5 * eps
+    tangential = np.array([slip[0], slip[1], 0.0]) / np.linalg.norm(slip[:2])
+    expected = mu * fn * L * share * tangential
+    np.testing.assert_allclose(f[:3] + f[6:9], expected, rtol=1e-9, atol=1e-12 * mu * fn * L)
+    moment = f[3:6] + f[9:12] + np.cross([L, 0.0, 0.0], f[6:9])
+    np.testing.assert_allclose(moment, np.cross([L / 2, 0.0, 0.0], expected), rtol=1e-9,
+                               atol=1e-12 * mu * fn * L * L)
