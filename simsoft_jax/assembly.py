@@ -27,7 +27,7 @@ from .model import Model
 from .terms import ElementData, element_state
 from .terms import autodiff as term_tangents
 from .terms import masses as mass_term
-from .terms import contact, offset_loads, point_in_element
+from .terms import contact, offset_loads, point_in_element, static_friction
 
 TANGENTS = ("closed_form", "autodiff")
 
@@ -208,6 +208,40 @@ def contact_data(model: Model):
                                each(model.slip_velocity), each(model.obstacle_velocity))
 
 
+def static_friction_and_tangent(model: Model, R, p, previous, tangent: bool = True):
+    """Nodal forces (E,12) of the quasi-static friction with the obstacles
+    (:mod:`simsoft_jax.terms.static_friction`) and (when ``tangent``, else None) their
+    left-invariant tangents (E,12,12) by ``jax.jacfwd`` in the 12 right perturbations of
+    the two nodal frames, the stations of the previous load level fixed; ``previous`` =
+    (R (N,3,3), p (N,3)) the frames there. None when the structure has no friction or
+    ``previous`` is None."""
+    s = model.structure
+    if previous is None or not s.has_friction:
+        return None
+    RA0, pA0, RB0, pB0 = element_poses(model, *previous)
+    d0 = jax.vmap(element.relative_twist)(RA0, pA0, RB0, pB0)
+    before = jax.vmap(lambda R, p, d: static_friction.stations(R, p, d, s.contact_points))(
+        RA0, pA0, d0)
+    zero = jnp.zeros(12, p.dtype)
+
+    def one(RA, pA, RB, pB, before, scale, data):
+        def f(y):
+            RA1, pA1 = lie.compose_exp(RA, pA, y[:6])
+            RB1, pB1 = lie.compose_exp(RB, pB, y[6:])
+            value = static_friction.force(element_state(RA1, pA1, RB1, pB1, zero, zero),
+                                          before, scale, data.contact, data.length,
+                                          s.obstacle_kinds, s.contact_points)
+            return value, value
+
+        if not tangent:
+            return f(zero)[0], None
+        jac, value = jax.jacfwd(f, has_aux=True)(zero)
+        return value, jac
+
+    return jax.vmap(one)(*element_poses(model, R, p), before, model.slip_displacement,
+                         element_data(model))
+
+
 def element_poses(model: Model, R, p):
     """Frames of the two nodes of every element: RA, pA, RB, pB (E,3,3)/(E,3)."""
     a = jnp.asarray(model.structure.element_nodes)
@@ -309,14 +343,19 @@ def attachments_and_tangents(model: Model, lam, R, v=None, vd=None, dynamic: boo
     return tuple(out) if dynamic else (out[0], out[1], None, None)
 
 
-def residual(model: Model, R, p, lam=1.0):
-    """Global residual (N,6), held dofs zeroed (spec S47/S70): the sum of the terms."""
+def residual(model: Model, R, p, lam=1.0, previous=None):
+    """Global residual (N,6), held dofs zeroed (spec S47/S70): the sum of the terms, with
+    the quasi-static friction against the frames ``previous`` of the last load level
+    (:func:`static_friction_and_tangent`; None: no friction)."""
     s = model.structure
     zeros = jnp.zeros((s.n_elements, 12), p.dtype)
     element_residual = term_tangents.element_residual(s, lam, dynamic=False)
     f_el = jax.vmap(lambda RA, pA, RB, pB, data: element_residual(
         element_state(RA, pA, RB, pB, zeros[0], zeros[0]), data))(
         *element_poses(model, R, p), element_data(model))
+    friction = static_friction_and_tangent(model, R, p, previous, tangent=False)
+    if friction is not None:
+        f_el = f_el + friction[0]
     r = assemble_vector(s.n_nodes, s.element_nodes, f_el)
     if s.has_nodal_dead or s.has_nodal_follower:
         r = r + jax.vmap(_nodal_load(model, lam))(R, model.nodal_dead, model.nodal_follower)
@@ -326,9 +365,12 @@ def residual(model: Model, R, p, lam=1.0):
     return r * s.free_mask()
 
 
-def residual_and_tangent(model: Model, R, p, lam=1.0, tangent: str = "closed_form"):
+def residual_and_tangent(model: Model, R, p, lam=1.0, tangent: str = "closed_form",
+                         previous=None):
     """Residual (N,6) and block-tridiagonal tangent ``(diag, upper, lower)`` (spec S70),
-    by the ``tangent`` path ("closed_form" or "autodiff", see the module docstring)."""
+    by the ``tangent`` path ("closed_form" or "autodiff", see the module docstring); with
+    ``previous`` (the frames of the last load level) the quasi-static friction is added
+    (by ``jax.jacfwd`` on both paths, :func:`static_friction_and_tangent`)."""
     s = model.structure
     if tangent == "autodiff":
         zero = jnp.zeros(12, p.dtype)
@@ -354,6 +396,9 @@ def residual_and_tangent(model: Model, R, p, lam=1.0, tangent: str = "closed_for
         touch = contact_and_tangent(model, R, p)
         if touch is not None:
             f_el, k_el = f_el + touch[0], k_el + touch[1]
+    friction = static_friction_and_tangent(model, R, p, previous)
+    if friction is not None:
+        f_el, k_el = f_el + friction[0], k_el + friction[1]
     r = assemble_vector(s.n_nodes, s.element_nodes, f_el)
     diag, upper, lower = assemble_blocks(s.n_nodes, s.element_nodes, k_el)
     if s.has_nodal_dead or s.has_nodal_follower:

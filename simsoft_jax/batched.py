@@ -66,7 +66,8 @@ def flat_continuation(model: Model, settings: StaticSettings) -> Equilibrium:
         lam_try, Rs, ps, ys = trial_level(f.cont)
         lam = jnp.where(f.starting, lam_try, f.lam_try)
         newton = newton_pass(model, settings, lam, ref,
-                             select(f.starting, newton_start(Rs, ps, ys), f.newton))
+                             select(f.starting, newton_start(Rs, ps, ys), f.newton),
+                             (f.cont.R, f.cont.p))
         ended = newton.status != _RUNNING
         cont = select(ended, after_newton(settings, f.cont, lam, *newton_outcome(newton)),
                       f.cont)

@@ -80,7 +80,7 @@ class Structure:
     obstacle_names: tuple = ()    # [[obstacles]] names, in scene order
     obstacle_kinds: tuple = ()    # their kinds (simsoft_jax.obstacles.KINDS); () = no contact
     contact_points: int = 0       # quadrature points per element for contact
-    has_friction: bool = False    # some obstacle has friction > 0 (traced in dynamics)
+    has_friction: bool = False    # some obstacle has friction > 0 (traced then)
     moving_obstacles: bool = False  # some obstacle has a motion (traced in dynamics)
 
     @property
@@ -148,7 +148,8 @@ class Model:
     (:class:`~simsoft_jax.loads.TimeLaws`): the obstacles' motions, each moved by
     ``shift * scale(t)`` (:func:`simsoft_jax.loads.obstacles_at`); obstacle_velocity (K,3)
     m/s their velocities at the model's time (zeros; set with the rows by
-    :func:`simsoft_jax.loads.loads_at`, read by the friction).
+    :func:`simsoft_jax.loads.loads_at`, read by the friction); slip_displacement (E,) m:
+    the slip scale of static friction (:mod:`simsoft_jax.terms.static_friction`).
     """
     structure: Structure
     R0: jax.Array
@@ -199,6 +200,7 @@ class Model:
     obstacle_shift: jax.Array = None
     obstacle_law: TimeLaws = None
     obstacle_velocity: jax.Array = None
+    slip_displacement: jax.Array = None
 
     def replace(self, **changes) -> "Model":
         """A copy with some arrays replaced (same structure: no recompilation)."""

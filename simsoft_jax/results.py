@@ -65,6 +65,7 @@ def compiled_static_solver(model: Model, settings):
     fields = dict.fromkeys(Equilibrium._fields, 0)
     fields["tendon_tension"] = 0 if model.structure.tendon_names else None
     fields["multipliers"] = 0 if model.structure.joints else None
+    fields["previous"] = (0, 0) if model.structure.has_friction else None
     out_tree = jax.tree_util.tree_structure(Equilibrium(**fields))
     compiled = compile_stored(_solve_static, (model, as_traced(settings)), out_tree,
                               "static")

@@ -3,7 +3,6 @@ their model tables: plain Python + NumPy, errors naming the key path (contract i
 ``docs/scene-format.md``; the physics in :mod:`simsoft_jax.terms.contact`)."""
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,9 +21,11 @@ OBSTACLE_KEYS = {kind: tuple(slots) for kind, slots in SLOTS.items()}
 KINDS = tuple(OBSTACLE_KEYS)      # obstacle kinds (simsoft_jax.obstacles)
 ROW = 11                          # length of an obstacle's parameter row
 MOTION_KEYS = ("displacement", "profile")
-CONTACT_KEYS = ("radius", "self", "stiffness", "slip_velocity", "quadrature_points")
+CONTACT_KEYS = ("radius", "self", "stiffness", "slip_velocity", "slip_displacement",
+                "quadrature_points")
 STIFFNESS_FACTOR = 1.0e3       # default penalty: 1e3 EI / h^4 per element
 SLIP_VELOCITY = 1.0e-3         # m/s, default slip-velocity scale of the friction
+SLIP_FRACTION = 1.0e-3         # default slip-displacement scale (statics) / contact radius
 QUADRATURE_POINTS = 4
 
 
@@ -43,6 +44,7 @@ class ContactSpec(SpecBase):
     radius: float | None = None           # m; None: per rod, or the section's outer radius
     stiffness: float | None = None        # N/m^2; None: STIFFNESS_FACTOR EI / h^4
     slip_velocity: float = SLIP_VELOCITY  # m/s
+    slip_displacement: float | None = None  # m; None: SLIP_FRACTION times the radius
     quadrature_points: int = QUADRATURE_POINTS
 
 
@@ -122,17 +124,6 @@ def parse_obstacles(items: list, profile=None, dynamic: bool = False) -> tuple:
     return tuple(out)
 
 
-def warn_static_friction(obstacles: tuple, kind: str) -> None:
-    """A static scene with friction > 0: a warning that statics ignores it (regularized
-    Coulomb acts in dynamic runs; quasi-static friction is not supported yet)."""
-    if kind != "static":
-        return
-    for i, o in enumerate(obstacles):
-        if o.friction > 0.0:
-            warnings.warn(f"obstacles[{i}].friction: static solves ignore friction (it acts "
-                          "in dynamic runs only)", stacklevel=3)
-
-
 def parse_contact(value) -> ContactSpec:
     """``[contact]`` -> ContactSpec. ``self = true`` (rod-rod contact) is not supported yet."""
     c = table(value, "contact")
@@ -142,7 +133,7 @@ def parse_contact(value) -> ContactSpec:
             fail("contact.self", f"must be true or false, got {c['self']!r}")
         fail("contact.self", "rod-rod and self contact are not supported yet (use false)")
     args = {}
-    for key in ("radius", "stiffness", "slip_velocity"):
+    for key in ("radius", "stiffness", "slip_velocity", "slip_displacement"):
         if key in c:
             args[key] = positive(c[key], join("contact", key))
     if "quadrature_points" in c:
@@ -160,12 +151,14 @@ def _section_radius(rod) -> float | None:
 
 
 def contact_tables(scene, stiffness, length):
-    """Model tables of the contact: per element radius (E,) m and penalty stiffness (E,)
-    N/m^2, obstacle rows (K,ROW), friction (K,), motion displacements (K,3) m (zeros
-    for fixed obstacles; their time laws: :func:`motion_profiles`) and velocities (K,3)
-    (zeros: at rest until :func:`simsoft_jax.loads.loads_at` moves them), from the scene's rods, ``[contact]`` and
-    obstacles; ``stiffness`` (E,6) or (E,6,6) and ``length`` (E,) the element tables (the
-    default penalty is ``STIFFNESS_FACTOR max(EIy, EIz) / h^4``)."""
+    """Model tables of the contact: per element radius (E,) m, penalty stiffness (E,)
+    N/m^2 and slip-displacement scale of static friction (E,) m, obstacle rows (K,ROW),
+    friction (K,), motion displacements (K,3) m (zeros for fixed obstacles; their time
+    laws: :func:`motion_profiles`) and velocities (K,3) (zeros: at rest until
+    :func:`simsoft_jax.loads.loads_at` moves them), from the scene's rods, ``[contact]``
+    and obstacles; ``stiffness`` (E,6) or (E,6,6) and ``length`` (E,) the element tables
+    (the default penalty is ``STIFFNESS_FACTOR max(EIy, EIz) / h^4``, the default slip
+    scale ``SLIP_FRACTION`` times the radius)."""
     spec = getattr(scene, "contact", None) or ContactSpec()
     obstacles = getattr(scene, "obstacles", ())
     radius = []
@@ -182,7 +175,10 @@ def contact_tables(scene, stiffness, length):
     rows = np.reshape([o.params for o in obstacles], (-1, ROW))
     shift = np.reshape([np.zeros(3) if o.displacement is None else o.displacement
                         for o in obstacles], (-1, 3))
-    return dict(contact_radius=np.asarray(radius, float), contact_stiffness=k,
+    radius = np.asarray(radius, float)
+    slip = (np.full(len(length), spec.slip_displacement) if spec.slip_displacement
+            is not None else SLIP_FRACTION * radius)
+    return dict(contact_radius=radius, contact_stiffness=k, slip_displacement=slip,
                 obstacles=rows, obstacle_friction=np.array([o.friction for o in
                                                             obstacles], float),
                 obstacle_shift=shift, obstacle_velocity=np.zeros_like(shift),

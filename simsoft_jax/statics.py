@@ -99,7 +99,9 @@ class Equilibrium(NamedTuple):
     (M,): the joint multipliers (:mod:`~simsoft_jax.mechanisms`; None without joints),
     tendon_tension (M,) the tendons' tensions (N): as given, or solved for
     displacement-controlled tendons (:mod:`simsoft_jax.tendon_control`); None when the
-    model has no tendons."""
+    model has no tendons; previous: the frames (R, p) of the load level before the last
+    one, the reference of the quasi-static friction there
+    (:mod:`simsoft_jax.terms.static_friction`); None without friction."""
     R: jax.Array
     p: jax.Array
     converged: jax.Array
@@ -112,6 +114,7 @@ class Equilibrium(NamedTuple):
     cause: jax.Array
     multipliers: jax.Array | None = None
     tendon_tension: jax.Array | None = None
+    previous: tuple | None = None
 
     def message(self) -> str:
         """How the solve ended, in words (concrete, unbatched results)."""
@@ -209,11 +212,14 @@ class _NewtonState(NamedTuple):
 _RUNNING = -1
 
 
-def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: _NewtonState) -> _NewtonState:
+def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: _NewtonState,
+                previous=None) -> _NewtonState:
     """One pass of :func:`_newton` at load level ``lam`` (load scale ``ref``): residual,
-    tangent and Newton step at the trial state, then accept or backtrack (see there)."""
+    tangent and Newton step at the trial state, then accept or backtrack (see there);
+    ``previous``: the frames (R, p) of the last converged level (the reference of the
+    quasi-static friction)."""
     tol = settings.tolerance * ref
-    r, blocks = residual_and_tangent(model, c.R, c.p, lam, settings.tangent)
+    r, blocks = residual_and_tangent(model, c.R, c.p, lam, settings.tangent, previous)
     if model.structure.joints:    # rods, bodies and joints: the bordered system
         res, dx, dy = _mechanism_step(model, ref, c.R, c.p, c.y, r, blocks)
     else:
@@ -289,7 +295,7 @@ def _mechanism_step(model: Model, ref, R, p, y, r, blocks):
     return (res,) + mechanisms.split(model.structure, x, z)
 
 
-def _newton(model: Model, settings: StaticSettings, R, p, y, lam, ref):
+def _newton(model: Model, settings: StaticSettings, R, p, y, lam, ref, previous=None):
     """Newton iterations at load level ``lam`` from (R, p) (spec S71) with damping.
 
     One loop evaluates residual, tangent and Newton step at a trial state. The trial is
@@ -301,10 +307,10 @@ def _newton(model: Model, settings: StaticSettings, R, p, y, lam, ref):
     rejected trial halves the step from the base. Every loop pass either accepts (counted
     against ``max_iterations``) or backtracks (at most ``line_search_steps`` in a row), so
     the loop always ends (:func:`newton_pass`). Returns (R, p, y, Newton steps, residual
-    norm, status code).
+    norm, status code). ``previous``: as in :func:`newton_pass`.
     """
     c = jax.lax.while_loop(lambda c: c.status == _RUNNING,
-                           lambda c: newton_pass(model, settings, lam, ref, c),
+                           lambda c: newton_pass(model, settings, lam, ref, c, previous),
                            newton_start(R, p, y))
     return newton_outcome(c)
 
@@ -396,7 +402,8 @@ def continuation_result(settings: StaticSettings, c: _ContinuationState) -> Equi
                        jnp.where(c.attempts >= settings.max_attempts, Status.MAX_ATTEMPTS,
                                  Status.STEP_TOO_SMALL))
     return Equilibrium(c.R, c.p, converged, c.iterations, c.residual, c.lam, c.accepted,
-                       c.failures, status, c.cause, c.y if c.y.size else None)
+                       c.failures, status, c.cause, c.y if c.y.size else None,
+                       previous=(c.R_prev, c.p_prev))
 
 
 def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
@@ -405,7 +412,8 @@ def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
 
     def body(c: _ContinuationState) -> _ContinuationState:
         lam_try, Rs, ps, ys = trial_level(c)
-        R, p, y, its, res, status = _newton(model, settings, Rs, ps, ys, lam_try, ref)
+        R, p, y, its, res, status = _newton(model, settings, Rs, ps, ys, lam_try, ref,
+                                            (c.R, c.p))
         return after_newton(settings, c, lam_try, R, p, y, its, res, status)
 
     c = jax.lax.while_loop(lambda c: continuing(settings, c), body,
@@ -414,18 +422,23 @@ def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0,))
-def _implicit(tangent: str, model: Model, converged, R, p, y):
+def _implicit(tangent: str, model: Model, converged, R, p, y, previous):
     """Identity on a converged equilibrium (frames R, p and joint multipliers y); its
     derivative is the IFT one (see module doc). Held dofs follow the start frames
     ``model.R0, model.p0`` (a clamp holds its node there). Where the solve did not
     converge the derivative is NaN: there is no equilibrium to differentiate, and a
-    finite number would be wrong."""
+    finite number would be wrong. With quasi-static friction (``previous``: the frames of
+    the level before the last, else None) the derivative is that of the last level's
+    equilibrium with ``previous`` held fixed: the history of the earlier levels is not
+    differentiated (exact for stations sliding in a direction the parameters do not turn,
+    as the friction (F1) is then ``mu f_n`` whatever the slip's size; an approximation
+    for sticking stations)."""
     return R, p, y
 
 
 @_implicit.defjvp
 def _implicit_jvp(tangent, primals, tangents):
-    model, converged, R, p, y = primals
+    model, converged, R, p, y, previous = primals
     dmodel = tangents[0]
     held = 1.0 - model.structure.free_mask()
     # body-frame motion of the held dofs: translations R^T dp0, rotations vee(R^T dR0)
@@ -437,11 +450,11 @@ def _implicit_jvp(tangent, primals, tangents):
 
     def perturbed(m, x):
         Rx, px = _update(R, p, x)
-        r = residual(m, Rx, px, 1.0)
+        r = residual(m, Rx, px, 1.0, previous)
         return mechanisms.residual(m, Rx, px, y, r) if m.structure.joints else (r, y)
 
     _, (dr, dr_z) = jax.jvp(perturbed, (model, jnp.zeros_like(moved)), (dmodel, moved))
-    r, blocks = residual_and_tangent(model, R, p, 1.0, tangent)
+    r, blocks = residual_and_tangent(model, R, p, 1.0, tangent, previous)
     if model.structure.joints:
         system = mechanisms.couple(model, R, p, y, r, blocks)
         x, z = implicit_solve_coupled(system.blocks, system.B, system.C, system.D, -dr,
@@ -469,10 +482,13 @@ def equilibrium(model: Model, settings: StaticSettings, continuation=None) -> Eq
                                              jax.lax.stop_gradient(st))
         # None without tendons (a zero-size output would trouble batched maps)
         tension = m.tendon_tension if m.structure.tendon_names else None
+        eq = eq._replace(previous=eq.previous if m.structure.has_friction else None)
         if eq.multipliers is None:       # no joints
-            R, p, _ = _implicit(st.tangent, m, eq.converged, eq.R, eq.p, jnp.zeros(0))
+            R, p, _ = _implicit(st.tangent, m, eq.converged, eq.R, eq.p, jnp.zeros(0),
+                                eq.previous)
             return eq._replace(R=R, p=p, tendon_tension=tension)
-        R, p, y = _implicit(st.tangent, m, eq.converged, eq.R, eq.p, eq.multipliers)
+        R, p, y = _implicit(st.tangent, m, eq.converged, eq.R, eq.p, eq.multipliers,
+                            eq.previous)
         return eq._replace(R=R, p=p, multipliers=y, tendon_tension=tension)
 
     if not any(model.structure.tendon_displaced):

@@ -102,6 +102,66 @@ def test_heavy_rod_lifted_off_a_table_matches_beam_theory(lifted):
     assert 0.0 < Q * L_ROD - F_LIFT - table["normal_force"] < 0.1 * Q * L_ROD
 
 
+# large lift: the same structure (compiled once) with a heavier rod and a larger force
+Q_BIG, F_BIG = 40.0, 14.0               # N/m, N: lifted length ~0.65 L, tip turned ~46 deg
+LIFT_BIG = _scene(L_ROD, [L_ROD, 0.0, 0.0], [0.0, 0.0, np.pi], F_BIG, Q_BIG / 9.81, -9.81,
+                  -R_CONTACT, ([0.0, 0.0, -10.0], 1.0))
+
+
+def shooting_lift(F, q, EI):
+    """Planar inextensible elastica of the lifted part, by shooting: arc length s from the
+    lift-off point A (s = 0) to the tip (s = l), tangent angle th from the table, bending
+    moment m = EI th'. The loads on [s, l] are the tip force F (up) and the weight q (down)
+    only (a frictionless table pushes vertically, so no horizontal force reaches the lifted
+    part); their moment about the section at s is
+    m(s) = F (x(l) - x(s)) - q int_s^l (x(t) - x(s)) dt, so m' = -cos th (F - q (l - s)).
+    At A the rod leaves a flat resting part with zero curvature: th = 0, m = 0, x = z = 0
+    (the jump of the shear there, q l - F, is the table's point reaction at A). At the
+    free tip m(l) = 0, the condition that fixes the lifted length l: a root of
+    m(l; l) found by bracketing on a grid and Brent's method. Returns l and the dense
+    solution (th, m, x, z)(s)."""
+    from scipy.integrate import solve_ivp
+    from scipy.optimize import brentq
+
+    def shoot(l):
+        def rhs(s, y):
+            th, m, _, _ = y
+            return [m / EI, -np.cos(th) * (F - q * (l - s)), np.cos(th), np.sin(th)]
+        return solve_ivp(rhs, (0.0, l), [0.0, 0.0, 0.0, 0.0], rtol=1e-12, atol=1e-14,
+                         dense_output=True)
+
+    grid = np.linspace(0.1, 1.5, 15) * 2.0 * F / q
+    tip = np.array([shoot(l).y[1, -1] for l in grid])
+    k = np.flatnonzero(np.sign(tip[:-1]) != np.sign(tip[1:]))[0]     # the shortest root
+    l = brentq(lambda l: shoot(l).y[1, -1], grid[k], grid[k + 1], xtol=1e-14)
+    return l, shoot(l).sol
+
+
+def test_heavy_rod_lifted_far_off_a_table_matches_the_elastica():
+    """Large lift (tip turned ~46 degrees, beyond beam theory: its tip lift q l^4/(24 EI)
+    is 20 % off): every node against the shooting solution of the elastica
+    (:func:`shooting_lift`) to 1e-3 of the rod length at 40 elements. Nodes at distance S
+    from the clamp (x = L - S on the table) lie flat for S < L - l; beyond, at
+    x = l - x_e(S - (L - l)), z = z_e(S - (L - l)). Where the rod leaves the table is set
+    by the lifted length l, so a wrong l shifts the whole lifted shape (checked also on
+    its own: the tip's horizontal position l - x_e(l) and height z_e(l))."""
+    pytest.importorskip("scipy")
+    res = sj.run(LIFT_BIG, stability=False)
+    assert res.converged, res.message
+    l, sol = shooting_lift(F_BIG, Q_BIG, EI)
+    assert 0.5 < l < 0.8 and np.degrees(sol(l)[0]) > 40.0
+    p = res.positions("rod")
+    S = np.linspace(0.0, L_ROD, N + 1)
+    s = np.clip(S - (L_ROD - l), 0.0, None)
+    _, _, xe, ze = sol(s)
+    lifted = S > L_ROD - l
+    expected = np.stack([np.where(lifted, l - xe, L_ROD - S), np.zeros_like(S),
+                         np.where(lifted, ze, 0.0)], axis=1)
+    assert np.abs(p - expected).max() < 1e-3 * L_ROD
+    assert abs(p[-1, 0] - (l - sol(l)[2])) < 1e-3 * L_ROD
+    assert abs(p[-1, 2] - sol(l)[3]) < 1e-3 * L_ROD
+
+
 def test_rod_wrapped_on_a_drum_takes_its_curvature(wrapped):
     """Where a rod lies on a rigid frictionless drum its centreline is the circle of radius
     Rc + r, so its curvature is 1/(Rc + r) and its bending moment EI/(Rc + r): checked on
@@ -254,6 +314,8 @@ def _with(**changes):
     ({"contact": {"radius": 0.01, "self": True}}, "contact.self: rod-rod and self contact"),
     ({"contact": {"radius": 0.0}}, "contact.radius: must be > 0"),
     ({"contact": {"quadrature_points": 0}}, "contact.quadrature_points: must be >= 1"),
+    ({"contact": {"radius": 0.01, "slip_displacement": 0.0}},
+     "contact.slip_displacement: must be > 0"),
     ({"contact": {"stiffnes": 1.0}}, "contact.stiffnes: unknown key"),
 ])
 def test_bad_contact_input_is_rejected_naming_the_key(change, message):
@@ -291,9 +353,3 @@ def test_cli_run_writes_contacts_into_the_result_file(lifted, tmp_path):
     np.testing.assert_allclose(table["force"], [0.0, 0.0, table["normal_force"]], atol=1e-9)
     assert 0.0 < table["max_penetration"] < 1e-3 * R_CONTACT
     assert written["drum"]["nodes"] == {"rod": []} and written["drum"]["normal_force"] == 0.0
-
-
-def test_static_scene_with_friction_warns_that_statics_ignores_it():
-    scene = _with(obstacles=[dict(WRAP["obstacles"][1], friction=0.2)])
-    with pytest.warns(UserWarning, match=r"obstacles\[0\].friction: static solves ignore"):
-        sj.Scene.from_dict(scene)
