@@ -19,20 +19,17 @@ from typing import Any
 import numpy as np
 
 from ._validate import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, fail, index,
-                        integer, join, matrix, number, plain, polyline, positive, prefixed, read_table,
-                        readonly, require, rodrigues, rotation_vector, string, table,
-                        toml_document, vector)
-from .materials import BUILTIN_MATERIALS, Material, get_material
+                        integer, join, matrix, number, plain, positive, read_table, readonly,
+                        require, rotation_vector, string, table, toml_document, vector)
 from .scene_actuators import parse_chambers, parse_tendons
-from .scene_attachments import parse_masses, parse_offset, parse_stiffness
+from .scene_attachments import parse_masses, parse_offset
 from .scene_contact import parse_contact, parse_obstacles
 from .scene_mechanisms import check_mechanism, jointed_rods, parse_bodies, parse_joints
-from .scene_initial import parse_initial
-from .scene_limits import (MAX_ELEMENTS, MAX_STEPS, check_elements, check_loads_on_held_nodes,
+from .scene_rods import parse_materials, parse_rod
+from .scene_limits import (MAX_ELEMENTS, MAX_STEPS, check_loads_on_held_nodes,
                            check_point_loads_in_elements, warn_short_features)
 from .scene_specs import (ConstraintSpec, GeometrySpec, InitialVelocitySpec, LoadSpec,
-                          ProfileSpec, RodSpec, SegmentSpec, SolverSettings)
-from .sections import Section, circle, custom_inertia, rectangle, semicircle, tube
+                          ProfileSpec, RodSpec, SolverSettings)
 from .supports import AXES, stress_free_frames, unheld_message
 
 __all__ = ["SolverSettings", "GeometrySpec", "RodSpec", "ConstraintSpec", "ProfileSpec",
@@ -89,18 +86,6 @@ _TOP_KEYS = ("name", "solver", "gravity", "materials", "rods", "constraints", "l
              "obstacles", "contact")
 _SOLVER_KEYS = ("kind", "tolerance", "max_iterations", "load_steps", "t_end", "dt",
                 "rho_inf", "save_every", "inertia", "tangent", "max_steps")
-_MATERIAL_KEYS = ("name", "E", "G", "nu", "density", "viscosity", "mass_damping")
-_ROD_KEYS = ("name", "material", "section", "shear_coefficients", "stiffness", "inertia",
-             "elements", "geometry", "base", "initial", "segments", "contact_radius")
-_SEGMENT_KEYS = ("elements", "material", "section", "shear_coefficients", "stiffness",
-                 "inertia")
-_SECTIONS = {"circle": (circle, ("diameter",)),
-             "tube": (tube, ("outer_diameter", "inner_diameter")),
-             "rectangle": (rectangle, ("width", "height")),
-             "semicircle": (semicircle, ("radius",))}
-_INERTIA_KEYS = ("rhoA", "rhoJ", "rhoIy", "rhoIz")
-_GEOMETRY_KEYS = {"straight": ("length",), "arc": ("radius", "angle_deg"),
-                  "helix": ("radius", "pitch", "turns"), "polyline": ("points",)}
 _PROFILE_KEYS = {"constant": (), "ramp": ("t0", "t1"), "smoothstep": ("t0", "t1"),
                  "linear": ("rate",), "table": ("t", "scale", "file")}
 
@@ -126,13 +111,13 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
         check_keys(g, "gravity", ("vector",), required=("vector",))
         gravity = readonly(vector(g["vector"], "gravity.vector"))
 
-    materials = _parse_materials(_array_of_tables(raw, "materials"))
+    materials = parse_materials(_array_of_tables(raw, "materials"))
     rod_items = _array_of_tables(raw, "rods")
     if not rod_items:
         fail("rods", "must contain at least one rod")
     rods: dict[str, RodSpec] = {}
     for i, item in enumerate(rod_items):
-        rod = _parse_rod(item, index("rods", i), materials, base_dir)
+        rod = parse_rod(item, index("rods", i), materials, base_dir)
         if rod.name in rods:
             fail(index("rods", i) + ".name", f"duplicate rod name {rod.name!r}")
         rods[rod.name] = rod
@@ -220,188 +205,6 @@ def _parse_solver(value: Any) -> SolverSettings:
     if "tangent" in s:
         out["tangent"] = choice(s["tangent"], "solver.tangent", ("closed_form", "autodiff"))
     return SolverSettings(**out)
-
-
-def _material_from_table(m: dict, path: str, need_name: bool) -> Material:
-    check_keys(m, path, _MATERIAL_KEYS, required=("name",) if need_name else ())
-    require(m, path, "E")
-    require(m, path, "density")
-    if ("G" in m) == ("nu" in m):
-        fail(path, "give exactly one of G, nu")
-    args: dict[str, Any] = {}
-    for key in _MATERIAL_KEYS:
-        if key == "name" and key in m:
-            args["name"] = string(m[key], join(path, key))
-            if not args["name"]:
-                fail(join(path, key), "must not be empty")
-        elif key in m:
-            check = positive if key in ("E", "G", "density") else number
-            args[key] = check(m[key], join(path, key))
-    with prefixed(path, _MATERIAL_KEYS):
-        return Material(**args)
-
-
-def _parse_materials(items: list[dict]) -> dict[str, Material]:
-    customs: dict[str, Material] = {}
-    for i, m in enumerate(items):
-        path = index("materials", i)
-        material = _material_from_table(m, path, need_name=True)
-        if material.name in BUILTIN_MATERIALS:
-            fail(join(path, "name"), f"{material.name!r} is a built-in material; "
-                 "choose another name")
-        if material.name in customs:
-            fail(join(path, "name"), f"duplicate material name {material.name!r}")
-        customs[material.name] = material
-    return customs
-
-
-def _parse_properties(r: dict, path: str, materials: dict[str, Material],
-                      material: Material | None = None, required: bool = True) -> dict:
-    """Material, section, shear coefficients and overrides of a rod or of a segment."""
-    mpath = join(path, "material")
-    if "material" in r:
-        material = _rod_material(r["material"], mpath, materials)
-
-    stiffness = inertia = None
-    if "stiffness" in r:
-        stiffness = parse_stiffness(r["stiffness"], join(path, "stiffness"))
-    if "inertia" in r:
-        ipath = join(path, "inertia")
-        m = table(r["inertia"], ipath)
-        check_keys(m, ipath, _INERTIA_KEYS, required=_INERTIA_KEYS)
-        args = {n: number(m[n], join(ipath, n)) for n in _INERTIA_KEYS}
-        with prefixed(ipath, _INERTIA_KEYS):
-            inertia = custom_inertia(**args)
-
-    section = None
-    if "section" in r:
-        section = _parse_section(r["section"], join(path, "section"))
-    elif required and (stiffness is None or inertia is None):
-        fail(join(path, "section"), "required unless both stiffness and inertia are given")
-    if section is not None and material is None:
-        fail(mpath, "required key missing (a rod with a section needs a material)")
-
-    shear = None
-    if "shear_coefficients" in r:
-        kpath = join(path, "shear_coefficients")
-        if stiffness is not None:
-            fail(kpath, "has no effect when stiffness is given (remove one)")
-        values = vector(r["shear_coefficients"], kpath, 2)
-        for j, kv in enumerate(values):
-            if kv <= 0.0:
-                fail(index(kpath, j), f"must be > 0, got {kv}")
-        shear = (float(values[0]), float(values[1]))
-    return dict(material=material, section=section, shear_coefficients=shear,
-                stiffness=readonly(stiffness), inertia=readonly(inertia))
-
-
-def _parse_segments(value: Any, path: str, materials: dict[str, Material],
-                    material: Material | None) -> tuple:
-    """``segments``: consecutive pieces of a rod, each with its own elements and section."""
-    if not isinstance(value, list) or not value:
-        fail(path, "must be a non-empty array of tables")
-    segments = []
-    for i, item in enumerate(value):
-        ipath = index(path, i)
-        seg = table(item, ipath)
-        check_keys(seg, ipath, _SEGMENT_KEYS, required=("elements",))
-        props = _parse_properties(seg, ipath, materials, material)
-        segments.append(SegmentSpec(
-            elements=integer(seg["elements"], join(ipath, "elements"), minimum=1), **props))
-    return tuple(segments)
-
-
-def _parse_rod(r: dict, path: str, materials: dict[str, Material],
-               base_dir: Path | None = None) -> RodSpec:
-    check_keys(r, path, _ROD_KEYS, required=("name", "geometry"))
-    name = string(r["name"], join(path, "name"))
-    if not name:
-        fail(join(path, "name"), "must not be empty")
-    has_segments = "segments" in r
-    props = _parse_properties(r, path, materials, required=not has_segments)
-    segments = None
-    if has_segments:
-        segments = _parse_segments(r["segments"], join(path, "segments"), materials,
-                                   props["material"])
-        total = sum(seg.elements for seg in segments)
-        if "elements" in r and integer(r["elements"], join(path, "elements")) != total:
-            fail(join(path, "elements"), f"must equal the sum over segments ({total})")
-        r = {**r, "elements": total}
-    elif "elements" not in r:
-        fail(join(path, "elements"), "required key missing")
-
-    elements = integer(r["elements"], join(path, "elements"), minimum=1)
-    if elements > MAX_ELEMENTS:
-        fail(join(path, "elements"), f"must be <= {MAX_ELEMENTS} (the limit per scene), "
-             f"got {elements}")
-    geometry = _parse_geometry(r["geometry"], join(path, "geometry"))
-    check_elements(geometry, elements, join(path, "geometry"))
-
-    position, rotation = np.zeros(3), np.eye(3)
-    if "base" in r:
-        bpath = join(path, "base")
-        b = table(r["base"], bpath)
-        check_keys(b, bpath, ("position", "rotation"))
-        if "position" in b:
-            position = vector(b["position"], join(bpath, "position"))
-        if "rotation" in b:
-            rotation = rodrigues(rotation_vector(b["rotation"], join(bpath, "rotation")))
-
-    initial = {}
-    if "initial" in r:
-        initial = parse_initial(r["initial"], join(path, "initial"), name, elements + 1,
-                                 position, rotation, base_dir or Path.cwd())
-
-    if "contact_radius" in r:
-        initial["contact_radius"] = positive(r["contact_radius"], join(path, "contact_radius"))
-    return RodSpec(name=name, **props, elements=elements, geometry=geometry,
-                   base_position=readonly(position), base_rotation=readonly(rotation),
-                   segments=segments, **initial)
-
-
-def _rod_material(value: Any, path: str, materials: dict[str, Material]) -> Material:
-    if isinstance(value, dict):
-        return _material_from_table(value, path, need_name=False)
-    name = string(value, path)
-    if name in materials:
-        return materials[name]
-    if name not in BUILTIN_MATERIALS:
-        known = ", ".join([*materials, *BUILTIN_MATERIALS])
-        fail(path, f"unknown material {name!r} (known: {known})")
-    return get_material(name)
-
-
-def _parse_section(value: Any, path: str) -> Section:
-    s = table(value, path)
-    shape = choice(require(s, path, "shape"), join(path, "shape"), tuple(_SECTIONS))
-    build, keys = _SECTIONS[shape]
-    check_keys(s, path, ("shape", *keys), required=keys)
-    args = {k: (number if k == "inner_diameter" else positive)(s[k], join(path, k))
-            for k in keys}
-    with prefixed(path, keys):
-        return build(**args)
-
-
-def _parse_geometry(value: Any, path: str) -> GeometrySpec:
-    g = table(value, path)
-    kind = choice(require(g, path, "kind"), join(path, "kind"), tuple(_GEOMETRY_KEYS))
-    keys = _GEOMETRY_KEYS[kind]
-    check_keys(g, path, ("kind", *keys), required=keys)
-    if kind == "polyline":
-        return GeometrySpec(kind, points=readonly(polyline(g["points"], join(path, "points"))))
-    if kind == "straight":
-        return GeometrySpec(kind, length=positive(g["length"], join(path, "length")))
-    radius = positive(g["radius"], join(path, "radius"))
-    if kind == "arc":
-        angle = positive(g["angle_deg"], join(path, "angle_deg"))
-        if angle > 360.0:
-            fail(join(path, "angle_deg"), f"must be <= 360, got {angle}")
-        return GeometrySpec(kind, radius=radius, angle_deg=angle)
-    pitch = number(g["pitch"], join(path, "pitch"))
-    if pitch < 0.0:
-        fail(join(path, "pitch"), f"must be >= 0, got {pitch}")
-    turns = positive(g["turns"], join(path, "turns"))
-    return GeometrySpec(kind, radius=radius, pitch=pitch, turns=turns)
 
 
 def _rod_of(item: dict, path: str, rods: dict[str, RodSpec]) -> RodSpec:

@@ -1,8 +1,9 @@
 """docs/scene-format.md keeps up with the scene parser.
 
 The accepted key sets are read from the code (the allowed-key tuples that
-``simsoft_jax/scene.py`` passes to ``check_keys``, its module-level ``_*_KEYS`` tables,
-and the options it passes to ``choice``), so a key added to the parser without a line in
+``simsoft_jax/scene.py`` and its section parsers (``scene_rods.py``, ``scene_contact.py``,
+...: ``SOURCES``) pass to ``check_keys``, their module-level ``*_KEYS`` tables, and the
+options they pass to ``choice``), so a key added to the parser without a line in
 the reference makes this test fail. The complete example scenes in the document must
 validate, and the example error messages must be what the validator prints.
 """
@@ -16,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from simsoft_jax import scene as scene_module
+from simsoft_jax import scene_rods
 from simsoft_jax.scene import Scene
 
 if sys.version_info >= (3, 11):
@@ -27,8 +29,9 @@ ROOT = Path(__file__).resolve().parents[1]
 DOC_PATH = ROOT / "docs" / "scene-format.md"
 DOC = DOC_PATH.read_text(encoding="utf-8")
 SOURCES = [Path(scene_module.__file__)] + [Path(scene_module.__file__).with_name(name) for name in
-                                            ("scene_initial.py", "_validate.py",
-                                                             "scene_contact.py")]
+                                            ("scene_rods.py", "scene_initial.py", "_validate.py",
+                                             "scene_contact.py", "scene_actuators.py",
+                                             "scene_attachments.py", "scene_mechanisms.py")]
 
 
 def _strings(node: ast.AST, names: dict[str, ast.AST], part: str = "all") -> set[str]:
@@ -71,9 +74,9 @@ def _code_sets() -> tuple[set[str], set[str]]:
             if name.endswith("_KEYS"):         # tuples of keys, or {kind: keys}
                 keys |= _strings(value, module, "values")
                 options |= _strings(value, module, "keys") if isinstance(value, ast.Dict) else set()
-        if "_SECTIONS" in module:               # {shape: (builder, (keys...))}
-            options |= _strings(module["_SECTIONS"], module, "keys")
-            keys |= _strings(module["_SECTIONS"], module, "values")
+        if "SECTIONS" in module:                # {shape: (builder, (keys...))}
+            options |= _strings(module["SECTIONS"], module, "keys")
+            keys |= _strings(module["SECTIONS"], module, "values")
         for func in ast.walk(tree):
             if not isinstance(func, ast.FunctionDef):
                 continue
@@ -110,9 +113,9 @@ def test_every_top_level_key_is_documented(key):
     assert f"`{key}`" in DOC, f"top-level key {key!r} (scene._TOP_KEYS) missing from {DOC_PATH}"
 
 
-@pytest.mark.parametrize("key", scene_module._ROD_KEYS)
+@pytest.mark.parametrize("key", scene_rods.ROD_KEYS)
 def test_every_rod_key_is_documented(key):
-    assert f"`{key}`" in DOC, f"rod key {key!r} (scene._ROD_KEYS) missing from {DOC_PATH}"
+    assert f"`{key}`" in DOC, f"rod key {key!r} (scene_rods.ROD_KEYS) missing from {DOC_PATH}"
 
 
 def test_every_accepted_key_and_option_is_documented():
