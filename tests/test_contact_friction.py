@@ -136,12 +136,13 @@ def test_friction_of_an_element_sliding_and_sticking_on_a_plane(slip, share):
     mu f_n L u_t / sqrt(..) and their moment about node A is L/2 x that force. Sliding
     (|u_t| = 100 u_s: Coulomb's mu f_n L to 5e-5), sticking (|u_t| = 0.01 u_s: a spring,
     1 % of it), and a slip with a normal part (only the tangential part counts)."""
+    from simsoft_jax import scene_contact as contact_tables
     from simsoft_jax.terms import contact, element_state, static_friction
     L, r, k, mu, us = 0.2, 0.01, 1.0e5, 0.4, 1.0e-6
     eps = contact.SMOOTHING * r
-    data = contact.ContactData(jnp.asarray(r), jnp.asarray(k),
-                               jnp.asarray([[0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]]),
-                               jnp.asarray([mu]), jnp.asarray(1e-3))
+    plane = jnp.zeros((1, contact_tables.ROW)).at[0, 5].set(1.0)   # point 0, normal +z
+    data = contact.ContactData(jnp.asarray(r), jnp.asarray(k), plane, jnp.asarray([mu]),
+                               jnp.asarray(1e-3), jnp.zeros((1, 3)))
     RA, pA = jnp.eye(3), jnp.array([0.0, 0.0, r - 2.0 * eps])
     pB = pA + jnp.array([L, 0.0, 0.0])
     u = us * jnp.asarray(slip)
