@@ -12,8 +12,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import rod_pairs
 from .assembly import contact_data, element_poses
 from .element import relative_twist
+from .scene_contact import SELF_NAME
 from .terms import contact
 
 
@@ -44,17 +46,22 @@ def report(model, R, p) -> dict | None:
     """``{obstacle: {"normal_force", "force", "max_penetration", "nodes"}}`` at frames
     ``R`` (N,3,3), ``p`` (N,3) (a static state: floats, (3,) and ``{rod: [nodes]}``) or
     (T,N,3,3), (T,N,3) (a trajectory: each with a leading time axis, ``nodes`` a list per
-    time); None when the scene has no obstacles."""
+    time); None when the scene has no obstacles. With rod-rod contact (static) the entry
+    ``SELF_NAME`` (``"rods"``) holds :func:`simsoft_jax.rod_pairs.report`."""
     s = model.structure
-    if not s.obstacle_kinds:
+    if not s.obstacle_kinds and not s.self_contact:
         return None
     R, p = jnp.asarray(R), jnp.asarray(p)
+    out = {}
+    if s.self_contact:      # static only (scene_contact.check_self_contact)
+        out[SELF_NAME] = rod_pairs.report(model, R, p)
+    if not s.obstacle_kinds:
+        return out
     if p.ndim == 2:
         force, normal, pen, touch = jax.device_get(_per_obstacle(model, R, p))
     else:
         force, normal, pen, touch = jax.device_get(jax.vmap(
             lambda Ri, pi: _per_obstacle(model, Ri, pi))(R, p))
-    out = {}
     for k, name in enumerate(s.obstacle_names):
         if p.ndim == 2:
             nodes = _nodes_in_contact(s, touch[:, k])

@@ -81,6 +81,8 @@ class Structure:
     obstacle_kinds: tuple = ()    # their kinds (simsoft_jax.obstacles.KINDS); () = no contact
     contact_points: int = 0       # quadrature points per element for contact
     has_friction: bool = False    # some obstacle has friction > 0 (traced in dynamics)
+    self_contact: bool = False    # rod-rod and self contact ([contact] self; statics)
+    contact_pairs: int = 0        # element pairs the rod-rod narrow phase holds
 
     @property
     def n_elements(self) -> int:
@@ -143,7 +145,8 @@ class Model:
     contact_radius (E,) m and contact_stiffness (E,) N/m^2 per element, obstacles (K,7)
     parameter rows (:mod:`simsoft_jax.obstacles`), obstacle_friction (K,), slip_velocity
     () m/s: the contact of :mod:`simsoft_jax.terms.contact` (read only when the structure
-    has obstacles).
+    has obstacles). self_exclusion () m: the arclength within which a rod's own elements
+    do not touch (rod-rod contact, :mod:`simsoft_jax.rod_pairs`).
     """
     structure: Structure
     R0: jax.Array
@@ -191,6 +194,7 @@ class Model:
     obstacles: jax.Array = None
     obstacle_friction: jax.Array = None
     slip_velocity: jax.Array = None
+    self_exclusion: jax.Array = None
 
     def replace(self, **changes) -> "Model":
         """A copy with some arrays replaced (same structure: no recompilation)."""
@@ -428,6 +432,7 @@ def build_model(scene) -> Model:
     masses = tuple(dataclasses.replace(m, node=by_name[m.rod].first_node + m.node)
                    for m in getattr(scene, "masses", ())) + joints.masses
     obstacles = getattr(scene, "obstacles", ())
+    self_contact = bool(getattr(scene, "contact", None) and scene.contact.self_contact)
     for load in loads:
         if load.element is not None:
             point_xi[by_name[load.rod].first_element + load.element] = load.xi
@@ -460,8 +465,10 @@ def build_model(scene) -> Model:
         obstacle_names=tuple(o.name for o in obstacles),
         obstacle_kinds=tuple(o.kind for o in obstacles),
         contact_points=(scene.contact.quadrature_points if scene.contact else
-                        QUADRATURE_POINTS) if obstacles else 0,
+                        QUADRATURE_POINTS) if obstacles or self_contact else 0,
         has_friction=any(o.friction > 0.0 for o in obstacles),
+        self_contact=self_contact,
+        contact_pairs=scene.contact.max_pairs if self_contact else 0,
     )
     arrays = dict(
         R0=R0, p0=p0, d0=d0, length=length, stiffness=K,

@@ -15,10 +15,13 @@ OBSTACLE_KEYS = {"plane": ("point", "normal"), "sphere": ("center", "radius"),
                  "capsule": ("a", "b", "radius"), "cylinder": ("axis_point", "axis", "radius"),
                  "tube": ("axis_point", "axis", "radius")}
 KINDS = tuple(OBSTACLE_KEYS)      # obstacle kinds (simsoft_jax.obstacles)
-CONTACT_KEYS = ("radius", "self", "stiffness", "slip_velocity", "quadrature_points")
+CONTACT_KEYS = ("radius", "self", "stiffness", "slip_velocity", "quadrature_points",
+                "self_exclusion", "max_pairs")
 STIFFNESS_FACTOR = 1.0e3       # default penalty: 1e3 EI / h^4 per element
 SLIP_VELOCITY = 1.0e-3         # m/s, default slip-velocity scale of the friction
 QUADRATURE_POINTS = 4
+SELF_NAME = "rods"             # the rod-rod entry of the result's contacts
+MAX_PAIRS = 8                  # default capacity of the rod-rod narrow phase (element pairs)
 
 
 @dataclass(frozen=True, eq=False)
@@ -35,6 +38,9 @@ class ContactSpec(SpecBase):
     stiffness: float | None = None        # N/m^2; None: STIFFNESS_FACTOR EI / h^4
     slip_velocity: float = SLIP_VELOCITY  # m/s
     quadrature_points: int = QUADRATURE_POINTS
+    self_contact: bool = False            # rod-rod and self contact ([contact] self)
+    self_exclusion: float | None = None   # m; None: 2 pi max(contact radius)
+    max_pairs: int = MAX_PAIRS            # element pairs the narrow phase holds
 
 
 def parameter_row(kind: str, values: dict) -> list:
@@ -88,21 +94,37 @@ def warn_static_friction(obstacles: tuple, kind: str) -> None:
 
 
 def parse_contact(value) -> ContactSpec:
-    """``[contact]`` -> ContactSpec. ``self = true`` (rod-rod contact) is not supported yet."""
+    """``[contact]`` -> ContactSpec (``self``: a bool; ``self_exclusion`` > 0,
+    ``max_pairs`` >= 1 only with ``self = true``)."""
     c = table(value, "contact")
     check_keys(c, "contact", CONTACT_KEYS)
-    if c.get("self", False) is not False:
-        if c["self"] is not True:
-            fail("contact.self", f"must be true or false, got {c['self']!r}")
-        fail("contact.self", "rod-rod and self contact are not supported yet (use false)")
-    args = {}
-    for key in ("radius", "stiffness", "slip_velocity"):
+    args = {"self_contact": c.get("self", False)}
+    if args["self_contact"] not in (True, False):
+        fail("contact.self", f"must be true or false, got {c['self']!r}")
+    for key in ("self_exclusion", "max_pairs"):
+        if key in c and not args["self_contact"]:
+            fail(join("contact", key), "only with contact.self = true")
+    for key in ("radius", "stiffness", "slip_velocity", "self_exclusion"):
         if key in c:
             args[key] = positive(c[key], join("contact", key))
-    if "quadrature_points" in c:
-        args["quadrature_points"] = integer(c["quadrature_points"],
-                                            "contact.quadrature_points", minimum=1)
+    for key in ("quadrature_points", "max_pairs"):
+        if key in c:
+            args[key] = integer(c[key], join("contact", key), minimum=1)
     return ContactSpec(**args)
+
+
+def check_self_contact(contact, kind: str, mechanisms: bool, obstacle_names) -> None:
+    """Rod-rod contact is solved in static scenes without joints or bodies; its result
+    entry ``contacts.rods`` must not clash with an obstacle's name."""
+    if contact is None or not contact.self_contact:
+        return
+    if kind != "static":
+        fail("contact.self", "rod-rod contact is supported in static solves only")
+    if mechanisms:
+        fail("contact.self", "rod-rod contact is not supported with joints or bodies")
+    if SELF_NAME in obstacle_names:
+        fail("contact.self", f"an obstacle is named {SELF_NAME!r}, the name of the "
+             "rod-rod entry of the result's contacts")
 
 
 def _section_radius(rod) -> float | None:
@@ -115,7 +137,8 @@ def _section_radius(rod) -> float | None:
 
 def contact_tables(scene, stiffness, length):
     """Model tables of the contact: per element radius (E,) m and penalty stiffness (E,)
-    N/m^2, obstacle rows (K,7) and friction (K,), from the scene's rods, ``[contact]`` and
+    N/m^2, obstacle rows (K,7) and friction (K,), the self-contact exclusion arclength
+    () m, from the scene's rods, ``[contact]`` and
     obstacles; ``stiffness`` (E,6) or (E,6,6) and ``length`` (E,) the element tables (the
     default penalty is ``STIFFNESS_FACTOR max(EIy, EIz) / h^4``)."""
     spec = getattr(scene, "contact", None) or ContactSpec()
@@ -123,7 +146,7 @@ def contact_tables(scene, stiffness, length):
     radius = []
     for i, rod in enumerate(scene.rods):
         r = getattr(rod, "contact_radius", None) or spec.radius or _section_radius(rod)
-        if r is None and obstacles:
+        if r is None and (obstacles or spec.self_contact):
             fail("contact.radius", f"required: rod {rod.name!r} has no circular section to "
                  f"take it from (or set rods[{i}].contact_radius)")
         radius += [r or 0.0] * rod.elements
@@ -132,7 +155,9 @@ def contact_tables(scene, stiffness, length):
     k = (np.full(len(length), spec.stiffness) if spec.stiffness is not None
          else STIFFNESS_FACTOR * EI / np.asarray(length) ** 4)
     rows = np.reshape([o.params for o in obstacles], (-1, 7))
-    return dict(contact_radius=np.asarray(radius, float), contact_stiffness=k,
+    exclusion = (spec.self_exclusion if spec.self_exclusion is not None
+                 else 2.0 * np.pi * max(radius, default=0.0))
+    return dict(self_exclusion=exclusion, contact_radius=np.asarray(radius, float), contact_stiffness=k,
                 obstacles=rows, obstacle_friction=np.array([o.friction for o in
                                                             obstacles], float),
                 slip_velocity=spec.slip_velocity)
