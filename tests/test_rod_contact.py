@@ -53,6 +53,19 @@ SCENE = {"solver": {"kind": "static", "load_steps": 5},
 TOP_MID, BOTTOM_MID = N // 2, (N + 1) + N // 2       # global node indices
 
 
+def penetration(force, point_stiffness):
+    """The penetration (m) at which the C2 penalty of a point contact of stiffness
+    ``l k`` (N/m) pushes with ``force`` (N): ``F = l k delta^2 / (2 eps)`` below the
+    smoothing width eps, ``F = l k (delta - eps/2)`` beyond it."""
+    cubic = np.sqrt(2.0 * EPS * force / point_stiffness)
+    return cubic if cubic < EPS else force / point_stiffness + EPS / 2
+
+
+def point_stiffness(model):
+    """``l k``: the mean sub-chord length times the penalty stiffness (N/m)."""
+    return float(model.contact_stiffness[0]) * (L / N) / POINTS
+
+
 @pytest.fixture(scope="module")
 def model():
     m = build_model(Scene.from_dict(SCENE))
@@ -82,10 +95,11 @@ def test_crossing_rods_newtons_third_law_and_force_equals_the_load(model, solved
 
 def test_symmetric_crossing_contact_point_and_penetration(model, solved):
     """By symmetry the rods touch at their middles, which stay on the z axis; the
-    penetration at that point follows the penalty law ``F = l k (delta - eps/2)`` (past
-    the smoothing width) with the point stiffness ``l k`` of one sub-chord length
-    (a crossing counted once: the partition of unity over the four sub-chord pairs at
-    the two middle nodes), and the clamped-clamped bottom rod sinks by
+    penetration at that point follows the penalty law (:func:`penetration`) with the
+    point stiffness ``l k`` of one sub-chord length (a crossing counted once: the
+    partition of unity over the four sub-chord pairs at the two middle nodes; exact for
+    collinear sub-chords, here the sag's kink of the chords at the nodes leaves 0.4 %
+    in the weights, 0.2 % in the penetration), and the clamped-clamped bottom rod sinks by
     ``F L^3 / (192 EI)`` at its middle (small deflection)."""
     p = np.asarray(solved.p)
     np.testing.assert_allclose(p[[TOP_MID, BOTTOM_MID], :2], 0.0, atol=1e-12)
@@ -93,16 +107,16 @@ def test_symmetric_crossing_contact_point_and_penetration(model, solved):
     top, bottom = p[:N + 1], p[N + 1:]
     np.testing.assert_allclose(top[:, 2], top[::-1, 2], atol=1e-12)
     np.testing.assert_allclose(bottom[:, 2], bottom[::-1, 2], atol=1e-12)
-    h = L / N
-    point_stiffness = float(model.contact_stiffness[0]) * h / POINTS
-    delta = F / point_stiffness + EPS / 2
+    delta = penetration(F, point_stiffness(model))
     gap = p[TOP_MID, 2] - p[BOTTOM_MID, 2]
-    np.testing.assert_allclose(2 * R_C - gap, delta, rtol=1e-3)
+    np.testing.assert_allclose(2 * R_C - gap, delta, rtol=5e-3)
     report = rod_pairs.report(model, solved.R, solved.p)
-    np.testing.assert_allclose(report["max_penetration"], delta, rtol=1e-3)
+    # the sub-chords at the kinked nodes reach a little deeper than the nodes
+    np.testing.assert_allclose(report["max_penetration"], 2 * R_C - gap, rtol=1e-3)
     np.testing.assert_allclose(-p[BOTTOM_MID, 2], F * L**3 / (192 * EI), rtol=1e-2)
 
 
+@pytest.mark.slow
 def test_gradients_through_rod_contact_match_finite_differences(model):
     """d(middle heights)/d(penalty stiffness scale, bottom rod's bending stiffness
     scale) by the implicit derivative against central differences."""
@@ -122,11 +136,12 @@ def test_gradients_through_rod_contact_match_finite_differences(model):
         fd = (np.asarray(heights(jnp.asarray(e))) - np.asarray(heights(jnp.asarray(-e)))) / (
             2 * step)
         np.testing.assert_allclose(jac[:, k], fd, rtol=1e-4, atol=1e-4 * np.abs(fd).max())
-    # independent check of the sizes: the bottom sag scales as 1/EI, the penetration
-    # ~ F/(l k) as 1/k
-    h = L / N
-    point_stiffness = float(model.contact_stiffness[0]) * h / POINTS
-    np.testing.assert_allclose(jac[0, 0] - jac[1, 0], F / point_stiffness, rtol=1e-3)
+    # and against the penalty law: the penetration (cubic branch here) falls with k as
+    # delta ~ k^(-1/2), so d(gap)/d(scale) = delta / 2; the bottom's sag ~ 1/EI
+    delta = penetration(F, point_stiffness(model))
+    assert delta < EPS
+    np.testing.assert_allclose(jac[0, 0] - jac[1, 0], delta / 2, rtol=5e-3)
+    np.testing.assert_allclose(jac[1, 1], F * L**3 / (192 * EI), rtol=1e-2)
 
 
 def test_result_contacts_entry_for_rod_pairs(model, solved, tmp_path):
