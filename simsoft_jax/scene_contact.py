@@ -99,7 +99,7 @@ def parse_contact(value) -> ContactSpec:
     c = table(value, "contact")
     check_keys(c, "contact", CONTACT_KEYS)
     args = {"self_contact": c.get("self", False)}
-    if args["self_contact"] not in (True, False):
+    if not isinstance(args["self_contact"], bool):
         fail("contact.self", f"must be true or false, got {c['self']!r}")
     for key in ("self_exclusion", "max_pairs"):
         if key in c and not args["self_contact"]:

@@ -219,3 +219,15 @@ def test_broad_phase_finds_the_folded_contacts_and_excludes_neighbours():
     assert all(s0[f] - s0[e + 1] >= exclusion for e, f in found)
     # without the exclusion the neighbours would be candidates: they are within reach
     assert touching(0, 1) and touching(0, 2)
+
+
+@pytest.mark.parametrize("change, key", [
+    ({"solver": {"kind": "dynamic", "dt": 0.01, "t_end": 0.02}}, "contact.self"),
+    ({"contact": {"radius": R_C, "self": False, "max_pairs": 4}}, "contact.max_pairs"),
+    ({"contact": {"radius": R_C, "self": 1}}, "contact.self"),
+    ({"obstacles": [{"name": "rods", "kind": "sphere", "center": [0.0, 0.0, 1.0],
+                     "radius": 0.1}]}, "contact.self"),
+])
+def test_rod_contact_input_errors_name_the_key(change, key):
+    with pytest.raises(ValueError, match=key.replace(".", r"\.")):
+        Scene.from_dict({**SCENE, **change})

@@ -2,9 +2,13 @@
 the closest points of pairs of sub-chords, forces and tangents by automatic
 differentiation of the pair energy (so Newton's third law holds by construction).
 
-Where. Each element's helical interpolation ``H_A exp(xi d)`` (spec S33) is sampled at
-the ``m + 1`` stations ``xi = j/m`` (``m = [contact] quadrature_points``; the first and
-last are the nodes): ``m`` straight sub-chords per element. For two elements e, f (a
+Where. Each element's centreline is the cubic Hermite curve through its two nodes with
+the tangents ``L R_A e_1``, ``L R_B e_1`` (``L`` the reference length; it agrees with the
+helical interpolation ``H_A exp(xi d)`` of spec S33 to ``O(kappa^3 L^4)`` for unsheared
+elements, and its second derivatives in the frames cost far less to compile than those
+of the SE(3) logarithm). It is sampled at the ``m + 1`` stations ``xi = j/m``
+(``m = [contact] quadrature_points``; the first and last are the nodes): ``m`` straight
+sub-chords per element. For two elements e, f (a
 candidate pair of :mod:`simsoft_jax.broad_phase`) every sub-chord pair (i, j) gets the
 closest points of the two chords, extended by ``EXTENSION`` of their length at both ends
 (parameters ``s, t`` in ``[-beta, 1 + beta]``), at distance ``D_ij``.
@@ -22,15 +26,18 @@ force F sinks by about ``F / (l k) + eps/2``. ``h`` is a C2 partition of unity o
 chord parameter (a quintic smoothstep ramp over ``[-beta, beta]`` and
 ``[1 - beta, 1 + beta]``): two collinear neighbouring chords share a crossing at their
 common station with weights summing to 1, so a crossing does not count twice (or four
-times) where it passes a station or a node. At a rod's free ends the chord is not
-extended and not ramped.
+times) where it passes a station or a node (for chords meeting at an angle theta the
+sum is ``1 + O(theta r / l)``). At a rod's free ends the chord is not extended and not
+ramped.
 
 Forces. The residual of a pair is the derivative of ``E_ef`` in the right perturbations
 ``H exp(x)`` of its four nodal frames (24,), its tangent the derivative of that residual
-(``jax.jacfwd``, 24x24): the energy depends only on relative positions, so the forces
-on the two elements are equal and opposite and their moments balance exactly.
+(``jax.jacfwd``, 24x24), both in the chart ``lie.compose_exp_quadratic`` (exact to
+second order at the current frames: all the residual and its tangent need). The energy
+depends only on relative positions, so the forces on the two elements are equal and
+opposite and their moments balance exactly.
 
-Limits. Contact is between the sub-chords, not the curved interpolation (its sagitta,
+Limits. Contact is between the sub-chords, not the curve (its sagitta,
 ``kappa (L/m)^2 / 8``, is an error of the gap). It is made for crossing contacts (point
 contacts); along a near-parallel line contact each overlapping pair of sub-chords acts
 as one point spring, so the line stiffness ``k`` is met only on average (within a
