@@ -54,7 +54,7 @@ from ..obstacles import safe_norm
 from .contact import SMOOTHING, penalty, penalty_slope
 
 EXTENSION = 0.25    # beta: chord extension (fraction of its length) of the partition ramps
-PARALLEL = 1e-12    # regularization of the closest-point solve (relative, sin^2 of angle)
+PARALLEL = 0.1      # regularization of the closest-point solve (relative to a e: sin^2)
 
 
 def smoothstep(u):
@@ -75,13 +75,19 @@ def stations(RA, pA, RB, pB, length, m: int):
 
 def closest_points(p1, q1, p2, q2, lo1, hi1, lo2, hi2):
     """Closest points of the chords ``p1 + s (q1 - p1)``, ``s in [lo1, hi1]``, and
-    ``p2 + t (q2 - p2)``, ``t in [lo2, hi2]``: ``(s, t, distance)`` (m). Parallel chords
-    take ``s = 0`` (then the nearest point of the second chord)."""
+    ``p2 + t (q2 - p2)``, ``t in [lo2, hi2]``: ``(s, t, distance)`` (m); ``s`` is
+    regularized towards the second chord's midpoint (below), ``t`` the nearest point to
+    ``s``."""
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2
     a, e = jnp.dot(d1, d1), jnp.dot(d2, d2)
     b, c, f = jnp.dot(d1, d2), jnp.dot(d1, r), jnp.dot(d2, r)
-    # regularized: parallel chords (numerator and denominator 0) take s = 0
-    s = jnp.clip((b * f - c * e) / (a * e - b * b + PARALLEL * a * e), lo1, hi1)
+    # Tikhonov-regularized towards s_mid, where the second chord's midpoint projects:
+    # near-parallel chords (a e - b^2 -> 0) take s_mid, well conditioned, instead of a
+    # closest point that jumps along the chord; crossing chords keep their closest point
+    # up to O(PARALLEL) (exactly when perpendicular), and the distance is stationary there
+    s_mid = (0.5 * b - c) / a
+    s = jnp.clip((b * f - c * e + PARALLEL * a * e * s_mid)
+                 / (a * e - b * b + PARALLEL * a * e), lo1, hi1)
     t = (b * s + f) / e
     s = jnp.where(t < lo2, jnp.clip((b * lo2 - c) / a, lo1, hi1),
                   jnp.where(t > hi2, jnp.clip((b * hi2 - c) / a, lo1, hi1), s))
