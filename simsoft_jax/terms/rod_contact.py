@@ -11,7 +11,10 @@ of the SE(3) logarithm). It is sampled at the ``m + 1`` stations ``xi = j/m``
 sub-chords per element. For two elements e, f (a
 candidate pair of :mod:`simsoft_jax.broad_phase`) every sub-chord pair (i, j) gets the
 closest points of the two chords, extended by ``EXTENSION`` of their length at both ends
-(parameters ``s, t`` in ``[-beta, 1 + beta]``), at distance ``D_ij``.
+(parameters ``s, t`` in ``[-beta, 1 + beta]``), at distance ``D_ij``; ``s`` is
+regularized towards the projection of the other chord's midpoint (weight
+``PARALLEL``), which near-parallel chords (a coil, a fold) take, so their weights do
+not jump along the chord (:func:`closest_points`).
 
 Normal contact (penalty). The gap is ``g = D - r_e - r_f`` (``r`` the contact radii,
 m), the penetration ``delta = -g``, and the pair energy (J)
