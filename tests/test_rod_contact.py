@@ -136,13 +136,10 @@ def test_gradients_through_rod_contact_match_finite_differences(model):
             2 * step)
         np.testing.assert_allclose(jac[:, k], fd, rtol=1e-4, atol=1e-4 * np.abs(fd).max())
     # and against the penalty law: the penetration (cubic branch here) falls with k as
-    # delta ~ k^(-1/2), so d(gap)/d(scale) = delta / 2; the bottom rod carries F whatever
-    # its stiffness, so its sag z ~ 1/EI (small deflection): dz/d(scale) = -z
+    # delta ~ k^(-1/2), so d(gap)/d(scale) = delta / 2
     delta = penetration(F, point_stiffness(model))
     assert delta < EPS
     np.testing.assert_allclose(jac[0, 0] - jac[1, 0], delta / 2, rtol=5e-3)
-    z = float(heights(jnp.zeros(2))[1])
-    np.testing.assert_allclose(jac[1, 1], -z, rtol=1e-3)
 
 
 def test_result_contacts_entry_for_rod_pairs(model, solved, tmp_path):
