@@ -12,9 +12,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import rod_pairs
 from .assembly import contact_data, element_poses
 from .element import relative_twist
 from .loads import obstacles_at
+from .scene_contact import SELF_NAME
 from .terms import contact
 
 
@@ -53,18 +55,23 @@ def report(model, R, p, time=None) -> dict | None:
     ``R`` (N,3,3), ``p`` (N,3) (a static state: floats, (3,) and ``{rod: [nodes]}``) or
     (T,N,3,3), (T,N,3) at the times ``time`` (T,) s (a trajectory: each with a leading
     time axis, ``nodes`` a list per time; moving obstacles taken where they are at each
-    time); None when the scene has no obstacles."""
+    time); None when the scene has no obstacles. With rod-rod contact (static) the entry
+    ``SELF_NAME`` (``"rods"``) holds :func:`simsoft_jax.rod_pairs.report`."""
     s = model.structure
-    if not s.obstacle_kinds:
+    if not s.obstacle_kinds and not s.self_contact:
         return None
     R, p = jnp.asarray(R), jnp.asarray(p)
+    out = {}
+    if s.self_contact:      # static only (scene_contact.check_self_contact)
+        out[SELF_NAME] = rod_pairs.report(model, R, p)
+    if not s.obstacle_kinds:
+        return out
     if p.ndim == 2:
         force, normal, pen, touch = jax.device_get(_per_obstacle(model, R, p))
     else:
         time = jnp.zeros(p.shape[0]) if time is None else jnp.asarray(time, jnp.float64)
         force, normal, pen, touch = jax.device_get(jax.vmap(
             lambda Ri, pi, ti: _per_obstacle(_at(model, ti), Ri, pi))(R, p, time))
-    out = {}
     for k, name in enumerate(s.obstacle_names):
         if p.ndim == 2:
             nodes = _nodes_in_contact(s, touch[:, k])

@@ -82,6 +82,8 @@ class Structure:
     contact_points: int = 0       # quadrature points per element for contact
     has_friction: bool = False    # some obstacle has friction > 0 (traced then)
     moving_obstacles: bool = False  # some obstacle has a motion (traced in dynamics)
+    self_contact: bool = False    # rod-rod and self contact ([contact] self; statics)
+    contact_pairs: int = 0        # element pairs the rod-rod narrow phase holds
 
     @property
     def n_elements(self) -> int:
@@ -149,7 +151,9 @@ class Model:
     ``shift * scale(t)`` (:func:`simsoft_jax.loads.obstacles_at`); obstacle_velocity (K,3)
     m/s their velocities at the model's time (zeros; set with the rows by
     :func:`simsoft_jax.loads.loads_at`, read by the friction); slip_displacement (E,) m:
-    the slip scale of static friction (:mod:`simsoft_jax.terms.static_friction`).
+    the slip scale of static friction (:mod:`simsoft_jax.terms.static_friction`);
+    self_exclusion () m: the arclength within which a rod's own elements do not touch
+    (rod-rod contact, :mod:`simsoft_jax.rod_pairs`).
     """
     structure: Structure
     R0: jax.Array
@@ -201,6 +205,7 @@ class Model:
     obstacle_law: TimeLaws = None
     obstacle_velocity: jax.Array = None
     slip_displacement: jax.Array = None
+    self_exclusion: jax.Array = None
 
     def replace(self, **changes) -> "Model":
         """A copy with some arrays replaced (same structure: no recompilation)."""
@@ -438,6 +443,7 @@ def build_model(scene) -> Model:
     masses = tuple(dataclasses.replace(m, node=by_name[m.rod].first_node + m.node)
                    for m in getattr(scene, "masses", ())) + joints.masses
     obstacles = getattr(scene, "obstacles", ())
+    self_contact = bool(getattr(scene, "contact", None) and scene.contact.self_contact)
     for load in loads:
         if load.element is not None:
             point_xi[by_name[load.rod].first_element + load.element] = load.xi
@@ -471,9 +477,11 @@ def build_model(scene) -> Model:
         obstacle_names=tuple(o.name for o in obstacles),
         obstacle_kinds=tuple(o.kind for o in obstacles),
         contact_points=(scene.contact.quadrature_points if scene.contact else
-                        QUADRATURE_POINTS) if obstacles else 0,
+                        QUADRATURE_POINTS) if obstacles or self_contact else 0,
         has_friction=any(o.friction > 0.0 for o in obstacles),
         moving_obstacles=any(o.profile is not None for o in obstacles),
+        self_contact=self_contact,
+        contact_pairs=scene.contact.max_pairs if self_contact else 0,
     )
     arrays = dict(
         R0=R0, p0=p0, d0=d0, length=length, stiffness=K,

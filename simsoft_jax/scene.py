@@ -23,7 +23,7 @@ from ._validate import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, fa
                         require, rotation_vector, string, table, toml_document, vector)
 from .scene_actuators import parse_chambers, parse_tendons
 from .scene_attachments import parse_masses, parse_offset
-from .scene_contact import parse_contact, parse_obstacles
+from .scene_contact import check_self_contact, parse_contact, parse_obstacles
 from .scene_mechanisms import check_mechanism, jointed_rods, parse_bodies, parse_joints
 from .scene_rods import parse_materials, parse_rod
 from .scene_limits import (MAX_ELEMENTS, MAX_STEPS, check_loads_on_held_nodes,
@@ -143,6 +143,8 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
     obstacles = parse_obstacles(_array_of_tables(raw, "obstacles"), profile,
                                 solver.kind == "dynamic")
     contact = parse_contact(raw["contact"]) if "contact" in raw else None
+    check_self_contact(contact, solver.kind, bool(bodies or joints),
+                       [o.name for o in obstacles])
     if solver.kind == "dynamic":
         warn_short_features(loads, constraints, solver.dt)
     check_loads_on_held_nodes(raw.get("loads", []), loads, constraints)

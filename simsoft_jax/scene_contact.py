@@ -22,11 +22,13 @@ KINDS = tuple(OBSTACLE_KEYS)      # obstacle kinds (simsoft_jax.obstacles)
 ROW = 11                          # length of an obstacle's parameter row
 MOTION_KEYS = ("displacement", "profile")
 CONTACT_KEYS = ("radius", "self", "stiffness", "slip_velocity", "slip_displacement",
-                "quadrature_points")
+                "quadrature_points", "self_exclusion", "max_pairs")
 STIFFNESS_FACTOR = 1.0e3       # default penalty: 1e3 EI / h^4 per element
 SLIP_VELOCITY = 1.0e-3         # m/s, default slip-velocity scale of the friction
 SLIP_FRACTION = 1.0e-3         # default slip-displacement scale (statics) / contact radius
 QUADRATURE_POINTS = 4
+SELF_NAME = "rods"             # the rod-rod entry of the result's contacts
+MAX_PAIRS = 8                  # default capacity of the rod-rod narrow phase (element pairs)
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,6 +48,9 @@ class ContactSpec(SpecBase):
     slip_velocity: float = SLIP_VELOCITY  # m/s
     slip_displacement: float | None = None  # m; None: SLIP_FRACTION times the radius
     quadrature_points: int = QUADRATURE_POINTS
+    self_contact: bool = False            # rod-rod and self contact ([contact] self)
+    self_exclusion: float | None = None   # m; None: 2 pi max(contact radius)
+    max_pairs: int = MAX_PAIRS            # element pairs the narrow phase holds
 
 
 def parameter_row(kind: str, values: dict) -> np.ndarray:
@@ -125,21 +130,37 @@ def parse_obstacles(items: list, profile=None, dynamic: bool = False) -> tuple:
 
 
 def parse_contact(value) -> ContactSpec:
-    """``[contact]`` -> ContactSpec. ``self = true`` (rod-rod contact) is not supported yet."""
+    """``[contact]`` -> ContactSpec (``self``: a bool; ``self_exclusion`` > 0,
+    ``max_pairs`` >= 1 only with ``self = true``)."""
     c = table(value, "contact")
     check_keys(c, "contact", CONTACT_KEYS)
-    if c.get("self", False) is not False:
-        if c["self"] is not True:
-            fail("contact.self", f"must be true or false, got {c['self']!r}")
-        fail("contact.self", "rod-rod and self contact are not supported yet (use false)")
-    args = {}
-    for key in ("radius", "stiffness", "slip_velocity", "slip_displacement"):
+    args = {"self_contact": c.get("self", False)}
+    if not isinstance(args["self_contact"], bool):
+        fail("contact.self", f"must be true or false, got {c['self']!r}")
+    for key in ("self_exclusion", "max_pairs"):
+        if key in c and not args["self_contact"]:
+            fail(join("contact", key), "only with contact.self = true")
+    for key in ("radius", "stiffness", "slip_velocity", "slip_displacement", "self_exclusion"):
         if key in c:
             args[key] = positive(c[key], join("contact", key))
-    if "quadrature_points" in c:
-        args["quadrature_points"] = integer(c["quadrature_points"],
-                                            "contact.quadrature_points", minimum=1)
+    for key in ("quadrature_points", "max_pairs"):
+        if key in c:
+            args[key] = integer(c[key], join("contact", key), minimum=1)
     return ContactSpec(**args)
+
+
+def check_self_contact(contact, kind: str, mechanisms: bool, obstacle_names) -> None:
+    """Rod-rod contact is solved in static scenes without joints or bodies; its result
+    entry ``contacts.rods`` must not clash with an obstacle's name."""
+    if contact is None or not contact.self_contact:
+        return
+    if kind != "static":
+        fail("contact.self", "rod-rod contact is supported in static solves only")
+    if mechanisms:
+        fail("contact.self", "rod-rod contact is not supported with joints or bodies")
+    if SELF_NAME in obstacle_names:
+        fail("contact.self", f"an obstacle is named {SELF_NAME!r}, the name of the "
+             "rod-rod entry of the result's contacts")
 
 
 def _section_radius(rod) -> float | None:
@@ -155,16 +176,17 @@ def contact_tables(scene, stiffness, length):
     N/m^2 and slip-displacement scale of static friction (E,) m, obstacle rows (K,ROW),
     friction (K,), motion displacements (K,3) m (zeros for fixed obstacles; their time
     laws: :func:`motion_profiles`) and velocities (K,3) (zeros: at rest until
-    :func:`simsoft_jax.loads.loads_at` moves them), from the scene's rods, ``[contact]``
-    and obstacles; ``stiffness`` (E,6) or (E,6,6) and ``length`` (E,) the element tables
-    (the default penalty is ``STIFFNESS_FACTOR max(EIy, EIz) / h^4``, the default slip
-    scale ``SLIP_FRACTION`` times the radius)."""
+    :func:`simsoft_jax.loads.loads_at` moves them), the self-contact exclusion arclength
+    () m, from the scene's rods, ``[contact]`` and obstacles; ``stiffness`` (E,6) or
+    (E,6,6) and ``length`` (E,) the element tables (the default penalty is
+    ``STIFFNESS_FACTOR max(EIy, EIz) / h^4``, the default slip scale ``SLIP_FRACTION``
+    times the radius)."""
     spec = getattr(scene, "contact", None) or ContactSpec()
     obstacles = getattr(scene, "obstacles", ())
     radius = []
     for i, rod in enumerate(scene.rods):
         r = getattr(rod, "contact_radius", None) or spec.radius or _section_radius(rod)
-        if r is None and obstacles:
+        if r is None and (obstacles or spec.self_contact):
             fail("contact.radius", f"required: rod {rod.name!r} has no circular section to "
                  f"take it from (or set rods[{i}].contact_radius)")
         radius += [r or 0.0] * rod.elements
@@ -175,10 +197,13 @@ def contact_tables(scene, stiffness, length):
     rows = np.reshape([o.params for o in obstacles], (-1, ROW))
     shift = np.reshape([np.zeros(3) if o.displacement is None else o.displacement
                         for o in obstacles], (-1, 3))
+    exclusion = (spec.self_exclusion if spec.self_exclusion is not None
+                 else 2.0 * np.pi * max(radius, default=0.0))
     radius = np.asarray(radius, float)
     slip = (np.full(len(length), spec.slip_displacement) if spec.slip_displacement
             is not None else SLIP_FRACTION * radius)
     return dict(contact_radius=radius, contact_stiffness=k, slip_displacement=slip,
+                self_exclusion=exclusion,
                 obstacles=rows, obstacle_friction=np.array([o.friction for o in
                                                             obstacles], float),
                 obstacle_shift=shift, obstacle_velocity=np.zeros_like(shift),

@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import lie, mechanisms, tendon_control
+from . import lie, mechanisms, rod_pairs, tendon_control
 from ._xla import jit
 from .assembly import check_tangent, residual, residual_and_tangent
 from .linalg import (block_solve, factorize_coupled, implicit_solve, implicit_solve_coupled,
@@ -222,6 +222,10 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: _NewtonStat
     r, blocks = residual_and_tangent(model, c.R, c.p, lam, settings.tangent, previous)
     if model.structure.joints:    # rods, bodies and joints: the bordered system
         res, dx, dy = _mechanism_step(model, ref, c.R, c.p, c.y, r, blocks)
+    elif model.structure.self_contact:   # rod-rod contact: the bordered system
+        r, blocks, cpl = rod_pairs.system(model, c.R, c.p, r, blocks)
+        dx, _ = solve_coupled(factorize_coupled(blocks, *cpl), -r, jnp.zeros(cpl.D.shape[0]))
+        res, dy = weighted_norm(model, r), c.dy
     else:
         res, dx, dy = weighted_norm(model, r), -block_solve(blocks, r), c.dy
     rot = jnp.max(jnp.linalg.norm(dx[:, 3:], axis=1))
@@ -451,6 +455,8 @@ def _implicit_jvp(tangent, primals, tangents):
     def perturbed(m, x):
         Rx, px = _update(R, p, x)
         r = residual(m, Rx, px, 1.0, previous)
+        if m.structure.self_contact:
+            r = r + rod_pairs.residual(m, Rx, px)
         return mechanisms.residual(m, Rx, px, y, r) if m.structure.joints else (r, y)
 
     _, (dr, dr_z) = jax.jvp(perturbed, (model, jnp.zeros_like(moved)), (dmodel, moved))
@@ -460,6 +466,10 @@ def _implicit_jvp(tangent, primals, tangents):
         x, z = implicit_solve_coupled(system.blocks, system.B, system.C, system.D, -dr,
                                       -dr_z)
         x, dy = mechanisms.split(model.structure, x, z)
+    elif model.structure.self_contact:
+        r, blocks, cpl = rod_pairs.system(model, R, p, r, blocks)
+        x, _ = implicit_solve_coupled(blocks, *cpl, -dr, jnp.zeros(cpl.D.shape[0]))
+        dy = jnp.zeros_like(y)
     else:
         x, dy = implicit_solve(blocks, -dr), jnp.zeros_like(y)
     nan_if_failed = jnp.where(converged, 1.0, jnp.nan)

@@ -311,7 +311,7 @@ def _with(**changes):
      "obstacles[0].friction: must be >= 0"),
     ({"obstacles": [{"name": "a", "kind": "sphere", "center": [0, 0, 0], "radius": 1}] * 2},
      "obstacles[1].name: must be a unique"),
-    ({"contact": {"radius": 0.01, "self": True}}, "contact.self: rod-rod and self contact"),
+    ({"contact": {"radius": 0.01, "self": "yes"}}, "contact.self: must be true or false"),
     ({"contact": {"radius": 0.0}}, "contact.radius: must be > 0"),
     ({"contact": {"quadrature_points": 0}}, "contact.quadrature_points: must be >= 1"),
     ({"contact": {"radius": 0.01, "slip_displacement": 0.0}},

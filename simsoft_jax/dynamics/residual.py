@@ -62,10 +62,18 @@ def _element_velocities(model: Model, v, vd):
             jnp.concatenate([vd[a], vd[a + 1]], axis=1))
 
 
+def refuse_rod_contact(structure) -> None:
+    """Rod-rod contact (:mod:`simsoft_jax.rod_pairs`) is a static term only: a clear error
+    rather than a dynamic run that leaves it out."""
+    if structure.self_contact:
+        raise ValueError("contact.self: rod-rod contact is supported in static solves only")
+
+
 def dynamic_residual(model: Model, inert: ElementInertia, R, p, v, vd, masked=True):
     """Global dynamic residual (N,6) (spec S47), held dofs zeroed (unless ``masked=False``).
     ``model`` holds the loads at the time of evaluation (:func:`loads.loads_at`)."""
     s = model.structure
+    refuse_rod_contact(s)
     residual = term_tangents.element_residual(s, 1.0, dynamic=True)
     f = jax.vmap(lambda RA, pA, RB, pB, ve, vde, data: residual(
         element_state(RA, pA, RB, pB, ve, vde), data))(
@@ -87,6 +95,7 @@ def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p,
     slide unknown before the held dofs are eliminated. ``tangent``: the element-block path
     (module docstring)."""
     s = model.structure
+    refuse_rod_contact(s)
     n = s.n_nodes
     a = jnp.asarray(s.element_nodes)
     dead, follower = dead_distributed_force(model, 1.0), follower_distributed_load(model, 1.0)

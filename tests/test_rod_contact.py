@@ -1,0 +1,266 @@
+"""Rod-rod contact in statics (issue 14, ``[contact] self = true``): two crossing rods
+pressed together against equilibrium and the penalty law, Newton's third law, the
+symmetric contact point, gradients against central finite differences, the result's
+``contacts.rods`` entry, and the broad phase's neighbour exclusion against a brute-force
+search over all element pairs written here.
+
+One structure serves the solves: rod "top" along x, its two end nodes held in x, y and
+the rotations but free to slide in z (set on the model: the scene validator rightly
+refuses a rod whose supports leave a rigid motion, and here the contact holds it), is
+pushed by a force F at its middle onto rod "bottom" along y, clamped at both ends; they
+cross at both middle nodes. The top rod is held in z by the contact alone, so the
+contact force on it equals F by equilibrium.
+"""
+import dataclasses
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import simsoft_jax as sj
+from simsoft_jax import rod_pairs, statics
+from simsoft_jax.model import build_model
+from simsoft_jax.results import Result
+from simsoft_jax.scene import Scene
+from simsoft_jax.terms import rod_contact
+from simsoft_jax.terms.contact import SMOOTHING
+
+N, L, R_C, EI, F = 4, 0.2, 0.005, 1.0, 10.0       # elements, m, m, N m^2, N
+POINTS = 4                                          # stations: sub-chords per element
+EPS = SMOOTHING * 2 * R_C                           # smoothing width of the pair penalty
+
+
+def _rod(name, along_y, z):
+    return {"name": name, "elements": N, "geometry": {"kind": "straight", "length": L},
+            "base": {"position": [0.0, -L / 2, z] if along_y else [-L / 2, 0.0, z],
+                     "rotation": [0.0, 0.0, np.pi / 2 if along_y else 0.0]},
+            "stiffness": {"EA": 1e7, "GAy": 1e7, "GAz": 1e7, "GJ": 1.0, "EIy": EI,
+                          "EIz": EI},
+            "inertia": {"rhoA": 1.0, "rhoJ": 1e-6, "rhoIy": 1e-6, "rhoIz": 1e-6}}
+
+
+SCENE = {"solver": {"kind": "static", "load_steps": 5},
+         # the top rod starts a smoothing width into the bottom one (not at zero force,
+         # where the penalty's cubic start has no stiffness)
+         "rods": [_rod("top", False, 2 * R_C - EPS), _rod("bottom", True, 0.0)],
+         "constraints": [{"kind": "clamp", "rod": r, "node": n}
+                         for r in ("top", "bottom") for n in (0, -1)],
+         "loads": [{"kind": "force", "rod": "top", "node": N // 2,
+                    "vector": [0.0, 0.0, -F]}],
+         "contact": {"radius": R_C, "self": True, "max_pairs": 4,
+                     "quadrature_points": POINTS}}
+TOP_MID, BOTTOM_MID = N // 2, (N + 1) + N // 2       # global node indices
+
+
+def penetration(force, point_stiffness):
+    """The penetration (m) at which the C2 penalty of a point contact of stiffness
+    ``l k`` (N/m) pushes with ``force`` (N): ``F = l k delta^2 / (2 eps)`` below the
+    smoothing width eps, ``F = l k (delta - eps/2)`` beyond it."""
+    cubic = np.sqrt(2.0 * EPS * force / point_stiffness)
+    return cubic if cubic < EPS else force / point_stiffness + EPS / 2
+
+
+def point_stiffness(model):
+    """``l k``: the mean sub-chord length times the penalty stiffness (N/m)."""
+    return float(model.contact_stiffness[0]) * (L / N) / POINTS
+
+
+@pytest.fixture(scope="module")
+def model():
+    m = build_model(Scene.from_dict(SCENE))
+    free = np.array(m.structure.free).reshape(-1, 6)
+    free[[0, N], 2] = True            # the top rod's ends slide in z (local z = world z)
+    return m.replace(structure=dataclasses.replace(m.structure,
+                                                   free=tuple(free.ravel().tolist())))
+
+
+@pytest.fixture(scope="module")
+def solved(model):
+    eq = statics.solve_static(model)
+    assert bool(eq.converged), eq.message()
+    return eq
+
+
+def test_crossing_rods_newtons_third_law_and_force_equals_the_load(model, solved):
+    report = rod_pairs.report(model, solved.R, solved.p)
+    top, bottom = report["rod_force"]["top"], report["rod_force"]["bottom"]
+    # the top rod is held in z by the contact only: its contact force is F, upward
+    np.testing.assert_allclose(top, [0.0, 0.0, F], atol=1e-7 * F)
+    np.testing.assert_allclose(bottom, -top, atol=1e-9 * F)          # third law
+    np.testing.assert_allclose(report["force"], 0.0, atol=1e-9 * F)
+    # the sum of the pair magnitudes: the normals tilt a little with the sag
+    np.testing.assert_allclose(report["normal_force"], F, rtol=1e-4)
+
+
+def test_symmetric_crossing_contact_point_and_penetration(model, solved):
+    """By symmetry the rods touch at their middles, which stay on the z axis; the
+    penetration at that point follows the penalty law (:func:`penetration`) with the
+    point stiffness ``l k`` of one sub-chord length (a crossing counted once: the
+    partition of unity over the four sub-chord pairs at the two middle nodes; exact for
+    collinear sub-chords, here the sag's kink of the chords at the nodes leaves 0.4 %
+    in the weights, 0.2 % in the penetration)."""
+    p = np.asarray(solved.p)
+    np.testing.assert_allclose(p[[TOP_MID, BOTTOM_MID], :2], 0.0, atol=1e-12)
+    # the deflected rods are mirror-symmetric about the crossing
+    top, bottom = p[:N + 1], p[N + 1:]
+    np.testing.assert_allclose(top[:, 2], top[::-1, 2], atol=1e-12)
+    np.testing.assert_allclose(bottom[:, 2], bottom[::-1, 2], atol=1e-12)
+    delta = penetration(F, point_stiffness(model))
+    gap = p[TOP_MID, 2] - p[BOTTOM_MID, 2]
+    np.testing.assert_allclose(2 * R_C - gap, delta, rtol=5e-3)
+    report = rod_pairs.report(model, solved.R, solved.p)
+    # the sub-chords at the kinked nodes reach a little deeper than the nodes
+    np.testing.assert_allclose(report["max_penetration"], 2 * R_C - gap, rtol=1e-3)
+
+
+@pytest.mark.slow
+def test_gradients_through_rod_contact_match_finite_differences(model):
+    """d(middle heights)/d(penalty stiffness scale, bottom rod's bending stiffness
+    scale) by the implicit derivative against central differences."""
+    bending = np.zeros(model.stiffness.shape)
+    bending[N:, 4:] = 1.0                         # EIy, EIz of the bottom rod's elements
+
+    def heights(a):
+        m = model.replace(contact_stiffness=model.contact_stiffness * (1.0 + a[0]),
+                          stiffness=model.stiffness * (1.0 + a[1] * bending))
+        eq = statics.solve_static(m)
+        return eq.p[jnp.array([TOP_MID, BOTTOM_MID]), 2]
+
+    jac = jax.jacfwd(heights)(jnp.zeros(2))
+    step = 1e-3
+    for k in range(2):
+        e = np.eye(2)[k] * step
+        fd = (np.asarray(heights(jnp.asarray(e))) - np.asarray(heights(jnp.asarray(-e)))) / (
+            2 * step)
+        np.testing.assert_allclose(jac[:, k], fd, rtol=1e-4, atol=1e-4 * np.abs(fd).max())
+    # and against the penalty law: the penetration (cubic branch here) falls with k as
+    # delta ~ k^(-1/2), so d(gap)/d(scale) = delta / 2
+    delta = penetration(F, point_stiffness(model))
+    assert delta < EPS
+    np.testing.assert_allclose(jac[0, 0] - jac[1, 0], delta / 2, rtol=5e-3)
+
+
+def test_result_contacts_entry_for_rod_pairs(model, solved, tmp_path):
+    result = Result(Scene.from_dict(SCENE), model, jax.device_get(solved), 0.0, 0.0)
+    path = result.save(tmp_path / "crossing.json")
+    rods = json.loads(path.read_text())["contacts"]["rods"]
+    assert set(rods) == {"normal_force", "force", "rod_force", "max_penetration", "nodes"}
+    np.testing.assert_allclose(rods["normal_force"], F, rtol=1e-4)
+    np.testing.assert_allclose(rods["rod_force"]["top"], [0.0, 0.0, F], atol=1e-6)
+    # the elements touching at the crossing: the two around each middle node
+    assert rods["nodes"] == {"top": [1, 2, 3], "bottom": [1, 2, 3]}
+
+
+def _hairpin(n_leg, h):
+    """Node positions and frames of a rod folded into a hairpin: a leg of n_leg elements
+    of length h along +x, a bend of 2 elements on a semicircle of radius ``h/sqrt(2)``
+    (chords of length h), and a leg back along -x, ``sqrt(2) h`` above the first."""
+    rho = h / np.sqrt(2.0)
+    pts = [[i * h, 0.0, 0.0] for i in range(n_leg + 1)]
+    pts += [[n_leg * h + rho, 0.0, rho], [n_leg * h, 0.0, 2 * rho]]
+    pts += [[(n_leg - i) * h, 0.0, 2 * rho] for i in range(1, n_leg + 1)]
+    pts = np.array(pts)
+    R = []
+    for i in range(len(pts)):
+        t = pts[min(i + 1, len(pts) - 1)] - pts[max(i - 1, 0)]
+        t = t / np.linalg.norm(t)
+        R.append(np.stack([t, [0.0, 1.0, 0.0], np.cross(t, [0.0, 1.0, 0.0])], 1))
+    return np.array(R), pts
+
+
+def test_broad_phase_finds_the_folded_contacts_and_excludes_neighbours():
+    """A hairpin whose legs lie 1.41 h apart, in contact with a contact radius r of 0.75
+    element lengths h, so that a rod's own neighbours (sharing a node, or one element
+    apart) are within reach. Brute force over all element pairs: every pair whose
+    sub-chords come within 2 r and whose arclength gap is beyond the exclusion must be a
+    candidate, and no candidate may be a neighbour."""
+    n_leg, h = 6, 0.01
+    r = 0.75 * h
+    R, p = _hairpin(n_leg, h)
+    E = len(p) - 1
+    scene = {"solver": {"kind": "static"},
+             "rods": [{"name": "hairpin", "elements": E,
+                       "geometry": {"kind": "straight", "length": E * h},
+                       "stiffness": {"EA": 1.0, "GAy": 1.0, "GAz": 1.0, "GJ": 1.0,
+                                     "EIy": 1.0, "EIz": 1.0},
+                       "inertia": {"rhoA": 1.0, "rhoJ": 1.0, "rhoIy": 1.0, "rhoIz": 1.0}}],
+             "constraints": [{"kind": "clamp", "rod": "hairpin", "node": 0}],
+             "contact": {"radius": r, "self": True, "max_pairs": 32,
+                         "quadrature_points": 2}}
+    model = build_model(Scene.from_dict(scene))
+    pairs = jax.device_get(jax.jit(rod_pairs.find_pairs)(model, jnp.asarray(R),
+                                                          jnp.asarray(p)))
+    assert not pairs.overflow
+    found = {(int(e), int(f)) for e, f, on in zip(pairs.e, pairs.f, pairs.active) if on}
+    exclusion = float(model.self_exclusion)
+    length = np.asarray(model.length)
+    s0 = np.concatenate([[0.0], np.cumsum(length)])
+    X = [np.asarray(rod_contact.stations(R[e], p[e], R[e + 1], p[e + 1], length[e], 2))
+         for e in range(E)]
+
+    def touching(e, f):         # sub-chords within 2 r (sampled densely)
+        u = np.linspace(0.0, 1.0, 21)[:, None]
+        for a in range(2):
+            A = X[e][a] + u * (X[e][a + 1] - X[e][a])
+            for b in range(2):
+                B = X[f][b] + u * (X[f][b + 1] - X[f][b])
+                if np.min(np.linalg.norm(A[:, None] - B[None], axis=-1)) < 2 * r:
+                    return True
+        return False
+
+    expected = {(e, f) for e in range(E) for f in range(e + 1, E)
+                if s0[f] - s0[e + 1] >= exclusion and touching(e, f)}
+    assert len(expected) >= n_leg - 2                  # the legs do touch
+    assert expected <= found
+    assert all(s0[f] - s0[e + 1] >= exclusion for e, f in found)
+    # without the exclusion the neighbours would be candidates: they are within reach
+    assert touching(0, 1) and touching(0, 2)
+
+
+@pytest.mark.parametrize("change, key", [
+    ({"solver": {"kind": "dynamic", "dt": 0.01, "t_end": 0.02}}, "contact.self"),
+    ({"contact": {"radius": R_C, "self": False, "max_pairs": 4}}, "contact.max_pairs"),
+    ({"contact": {"radius": R_C, "self": 1}}, "contact.self"),
+    ({"obstacles": [{"name": "rods", "kind": "sphere", "center": [0.0, 0.0, 1.0],
+                     "radius": 0.1}]}, "contact.self"),
+])
+def test_rod_contact_input_errors_name_the_key(change, key):
+    with pytest.raises(ValueError, match=key.replace(".", r"\.")):
+        Scene.from_dict({**SCENE, **change})
+
+
+@pytest.mark.slow
+def test_coil_with_overlapping_turns_opens_until_its_turns_just_touch():
+    """Self contact in a solve: a two-turn helix (coil radius 0.02 m, 8 elements a turn)
+    whose stress-free pitch, 0.9 (2 r), makes its turns overlap. Contact pushes the
+    turns apart; they cannot separate beyond touching (without contact they would spring
+    back towards the overlap), so at equilibrium every point of the second turn sits at
+    about 2 r from the first: between ``2 r`` minus the largest penetration and ``2 r``.
+    The contact forces are internal: their total on the rod vanishes."""
+    r = 0.005
+    scene = {"solver": {"kind": "static", "load_steps": 5},
+             "rods": [{"name": "coil", "elements": 16,
+                       "geometry": {"kind": "helix", "radius": 0.02, "pitch": 0.9 * 2 * r,
+                                    "turns": 2.0},
+                       "stiffness": {"EA": 1e5, "GAy": 1e5, "GAz": 1e5, "GJ": 0.5,
+                                     "EIy": 0.5, "EIz": 0.5},
+                       "inertia": {"rhoA": 1.0, "rhoJ": 1e-6, "rhoIy": 1e-6,
+                                   "rhoIz": 1e-6}}],
+             "constraints": [{"kind": "clamp", "rod": "coil", "node": 0}],
+             "loads": [{"kind": "force", "rod": "coil", "node": -1,
+                        "vector": [0.0, 0.0, -0.01]}],
+             "contact": {"radius": r, "self": True, "max_pairs": 64, "quadrature_points": 2,
+                         "stiffness": 1e6}}
+    result = sj.run(scene)
+    assert result.converged, result.message
+    rods = result.contacts["rods"]
+    p = result.positions("coil")
+    separation = np.linalg.norm(p[8:] - p[:9], axis=1)      # one turn apart, same angle
+    pen = float(rods["max_penetration"])
+    assert 0.0 < pen < 0.05 * 2 * r
+    assert np.all(separation >= 2 * r - pen - 1e-12)
+    assert np.all(separation <= 2 * r)
+    np.testing.assert_allclose(rods["force"], 0.0, atol=1e-9 * float(rods["normal_force"]))
+    assert result.stability is None              # not checked with rod-rod contact
