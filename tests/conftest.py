@@ -9,8 +9,9 @@
   :mod:`simsoft_jax.compile_cache`) in a folder of this test session, never the user's
   home, for every program of the session (JAX's own variables, so also for tests that
   never call ``sj.run``); set in the environment, so the subprocesses share it. Programs
-  dropped by ``jax.clear_caches()`` after a module are read back from it by later
-  modules and by the subprocesses. ``SIMSOFT_JAX_CACHE=0`` runs the tests without it.
+  dropped by ``jax.clear_caches()`` (when the process holds many memory maps, see
+  ``_release_compiled_programs``) are read back from it by later modules and by the
+  subprocesses. ``SIMSOFT_JAX_CACHE=0`` runs the tests without it.
 * Independent NumPy references used by several test modules (elementary rotations, the
   skew matrix, the exact pure-bending arc).
 
@@ -46,17 +47,44 @@ if os.environ.get("SIMSOFT_JAX_CACHE", "1") != "0":
     os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"] = "0"
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _release_compiled_programs():
-    """Drop JAX's compiled programs after every test module. Each one holds a few hundred
-    memory maps (measured: ~370 per static solver); the whole suite in one process would
-    reach the kernel's limit (``vm.max_map_count``, 65530 by default) and abort inside the
-    XLA compiler."""
-    yield
+def _memory_maps() -> int | None:
+    """The number of memory maps of this process (Linux), or None where it cannot be read."""
+    try:
+        with open("/proc/self/maps", "rb") as maps:
+            return sum(1 for _ in maps)
+    except OSError:
+        return None
+
+
+# Release compiled programs past this many maps: well below the kernel's default limit
+# (65530), which leaves room for the largest module's own programs (measured: ~370 maps per
+# static solver; 6 statics modules in one process grow from 900 to 12000 maps).
+MAP_BUDGET = 24000
+
+
+def _release():
     import jax
 
     jax.clear_caches()
     gc.collect()
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _release_compiled_programs(request):
+    """Drop JAX's compiled programs after a test module once this process holds more than
+    ``MAP_BUDGET`` memory maps (after every module where the count cannot be read). Each
+    program holds a few hundred maps; the whole suite in one process would reach the
+    kernel's limit (``vm.max_map_count``, 65530 by default) and abort inside the XLA
+    compiler. Until then the programs stay in memory, so later modules that use the same
+    structures (and the many small programs of model building) neither compile them again
+    nor read them back from the persistent cache. A module that counts compilations sets
+    ``COUNTS_COMPILATIONS = True`` and starts with none in memory."""
+    if getattr(request.module, "COUNTS_COMPILATIONS", False):
+        _release()
+    yield
+    maps = _memory_maps()
+    if maps is None or maps > MAP_BUDGET:
+        _release()
 
 
 # ----------------------------------------------------------------------------- references

@@ -24,6 +24,7 @@ from conftest import arc
 from simsoft_jax import cli, sweeps
 
 COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
+COUNTS_COMPILATIONS = True   # conftest: start this module with no program in memory
 
 
 @contextlib.contextmanager

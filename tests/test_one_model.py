@@ -70,6 +70,7 @@ def static_scene():
 
 
 SETTINGS = sj.DynamicSettings(dt=0.01, steps=50, rho_inf=0.8, tolerance=1e-13)
+COUNTS_COMPILATIONS = True   # conftest: start this module with no program in memory
 
 
 def test_changed_loads_and_inertia_reach_the_rollout():
