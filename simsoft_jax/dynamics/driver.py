@@ -106,13 +106,14 @@ def _assemble(model: Model, outputs, carry, blocks: int, t_end: float, dt: float
     t, R, p, v, its, subs, mu = (np.concatenate(x)[:blocks] for x in zip(*outputs))
     time_ = np.concatenate([[0.0], t])
     R, p, v = (np.concatenate([x0[None], x]) for x0, x in ((R0, R), (p0, p), (v0, v)))
-    mu = np.concatenate([np.zeros((1,) + mu.shape[1:]), mu])
+    mu = np.concatenate([np.zeros((1,) + mu.shape[1:]), mu]) if mu.shape[-1] else None
     converged = not bool(carry.failed)
     status, cause = int(carry.status), int(carry.cause)
     failed_at, residual = float(carry.failed_at), float(carry.residual)
     if not converged:  # saved states after the failure repeat the last good one
         keep = int(np.searchsorted(time_, failed_at, side="left")) + 1
-        time_, R, p, v, mu = time_[:keep], R[:keep], p[:keep], v[:keep], mu[:keep]
+        time_, R, p, v = time_[:keep], R[:keep], p[:keep], v[:keep]
+        mu = None if mu is None else mu[:keep]
     elif interrupted:
         converged, status, cause = False, int(Status.INTERRUPTED), int(Status.NOT_RUN)
         failed_at, residual = float(time_[-1]), np.nan

@@ -40,7 +40,7 @@ class Trajectory(NamedTuple):
     (nan if none). After a failure the state is frozen: the saved states after
     ``failed_at`` repeat the last good state (the host driver :func:`rollout` cuts them).
     multipliers (T,M): at the saved times, the joint multipliers or the tensions (N) of
-    displacement-controlled tendons (:func:`~.residual.border_sizes`; M = 0 without
+    displacement-controlled tendons (:func:`~.residual.border_sizes`; None without
     either); the start's row is 0 (not solved: the start accelerations take the tendons
     slack)."""
     time: jax.Array
@@ -204,9 +204,11 @@ def _simulate(model: Model, settings: DynamicSettings, state: State | None,
     converged = ~final.failed
     R, p, v = (poison_gradient(converged, x, (model, state)) for x in
                (cat(state.R, R), cat(state.p, p), cat(state.v, v)))
+    # None without multipliers: a zero-size output would trouble batched maps
+    mu = cat(first.memory.multipliers, mu) if mu.shape[-1] else None
     return Trajectory(cat(state.t, t), R, p, v, converged, final.failed_at,
                       its.reshape(-1), subs.reshape(-1), final.state, final.status,
-                      final.cause, final.residual, cat(first.memory.multipliers, mu))
+                      final.cause, final.residual, mu)
 
 
 def energy(model: Model, R, p, v):
