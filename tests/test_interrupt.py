@@ -55,11 +55,12 @@ def test_cli_ctrl_c_writes_the_result_and_exits_130(tmp_path):
     scene.write_text(json.dumps(pendulum(50.0)))     # 250 chunks: far longer than the test
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
     # a shell that starts the tests in the background ignores SIGINT, and a child Python
-    # that inherits the ignore never raises KeyboardInterrupt: restore the default first
-    proc = subprocess.Popen([sys.executable, "-m", "simsoft_jax.cli", "run", str(scene),
-                             "-o", str(out)], stderr=subprocess.PIPE, stdout=subprocess.PIPE,
-                            env=env, text=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    # that inherits the ignore never raises KeyboardInterrupt: the child installs
+    # Python's own handler before it runs the CLI (no preexec_fn: unsafe with threads)
+    start = ("import runpy, signal; signal.signal(signal.SIGINT, signal.default_int_handler); "
+             "runpy.run_module('simsoft_jax.cli', run_name='__main__')")
+    proc = subprocess.Popen([sys.executable, "-c", start, "run", str(scene), "-o", str(out)],
+                            stderr=subprocess.PIPE, stdout=subprocess.PIPE, env=env, text=True)
     text = ""
     while "t = " not in text:                          # the first progress report
         char = proc.stderr.read(1)
