@@ -6,7 +6,9 @@ prediction of the other half.
 Data: ``shared/data/real/pazy_wing_technion`` (read its README for the set-up and caveats).
 Model, from the files only:
 
-* 15 elements on the reference axis (44 % chord, 0.5498 m), one per data element; its
+* 15 elements on the reference axis (44 % chord, 0.5498 m), one per data element, with
+  the data's unequal station spacing (13 of 38.25 mm, then 33.47 and 19.13 mm; segment
+  ``length``) so that properties and masses sit where the data put them; its
   4x4 stiffness ``[extension, twist, flap, edgewise]`` (K11..K44 with couplings) becomes
   the 6x6 section matrix by :func:`simsoft_jax.sections.beam4_stiffness` (shear-rigid data:
   GA = 1e4 x EA keeps shear strains negligible). Frames: world = the Nastran frame of the
@@ -66,16 +68,18 @@ def wing_scene(skin: int, test: str, mass: float) -> dict:
     stiffness = read_csv(f"beam_stiffness_skin{skin}.csv")
     inertia = read_csv(f"beam_inertia_skin{skin}.csv")
     axis = read_csv("beam_reference_axis_nodes.csv")
-    span = float(axis[-1]["y_m_spanwise"])
+    stations = np.array([float(r["y_m_spanwise"]) for r in axis])
+    span = float(stations[-1])
     segments = []
-    for row in stiffness:
+    for row, length in zip(stiffness, np.diff(stations)):
         k = {key: float(row[key]) for key in row if key.startswith("K")}
         K4 = np.array([[k["K11"], k["K12"], k["K13"], k["K14"]],
                        [k["K12"], k["K22"], k["K23"], k["K24"]],
                        [k["K13"], k["K23"], k["K33"], k["K34"]],
                        [k["K14"], k["K24"], k["K34"], k["K44"]]])
         K = sections.beam4_stiffness(K4, shear=(1e4 * k["K11"], 1e4 * k["K11"]))
-        segments.append({"elements": 1, "stiffness": {"matrix": K.tolist()},
+        segments.append({"elements": 1, "length": float(length),
+                         "stiffness": {"matrix": K.tolist()},
                          "inertia": {"rhoA": 1e-9, "rhoJ": 0.0, "rhoIy": 0.0, "rhoIz": 0.0}})
     masses = [{"rod": "wing", "node": i, "mass": float(r["mass"]),
                # Nastran (X aft, Y span, Z up) -> section frame (x = Y, y = -X, z = Z)

@@ -3,7 +3,8 @@ the elements they pass, tensions, chamber pressures and areas, and their time la
 (:mod:`simsoft_jax.terms.tendons`, :mod:`simsoft_jax.terms.chambers`).
 
 Arc length ``s`` (m) along a rod is measured from its first node in the stress-free
-shape, nodes evenly spaced (``s_k = k L_rod / elements``); a tendon across welded rods
+shape, the nodes at ``RodSpec.node_arc`` (evenly spaced, ``s_k = k L_rod / elements``,
+unless the rod's segments give their lengths); a tendon across welded rods
 is sampled part by part, each in its own rod. The offsets and their slopes
 are evaluated here once (NumPy) and become traced Model arrays, so a routing can be
 changed, or differentiated, without recompiling.
@@ -23,8 +24,7 @@ def quadrature_size(scene) -> int:
     if all(part.routing.kind == "constant" for part in parts):
         return 1
     specs = {rod.name: rod for rod in scene.rods}
-    turns = [specs[part.rod].geometry.arc_length / specs[part.rod].elements
-             / abs(part.routing.pitch) for part in parts if part.routing.kind == "helix"]
+    turns = [np.diff(specs[part.rod].node_arc()).max() / abs(part.routing.pitch) for part in parts if part.routing.kind == "helix"]
     return int(max([6] + [int(np.ceil(_SAMPLES_PER_TURN * x)) for x in turns]))
 
 
@@ -69,9 +69,9 @@ def _members(items, rods, n_elements):
     return tuple(out)
 
 
-def _spacing(scene):
-    """Rod name -> reference node spacing (m)."""
-    return {rod.name: rod.geometry.arc_length / rod.elements for rod in scene.rods}
+def _node_arcs(scene):
+    """Rod name -> arc length (m) of its nodes, (nodes,)."""
+    return {rod.name: rod.node_arc() for rod in scene.rods}
 
 
 def check_crossings(scene, rods, R0, p0):
@@ -80,11 +80,11 @@ def check_crossings(scene, rods, R0, p0):
     scene's size: the weld then keeps them together, so the tendon's bridge across the
     weld has zero length at every solution (the model of
     :mod:`simsoft_jax.terms.tendons` sums the tendon's parts inside the rods only)."""
-    h = _spacing(scene)
+    arcs = _node_arcs(scene)
     scale = max(np.abs(p0).max(), 1.0)
 
     def point(part, node):
-        offset, _ = routing_at(part.routing, np.array(node * h[part.rod]))
+        offset, _ = routing_at(part.routing, np.array(arcs[part.rod][node]))
         k = rods[part.rod].first_node + node
         return p0[k] + R0[k] @ np.array([0.0, *offset])
 
@@ -111,13 +111,14 @@ def tendon_arrays(scene, rods, n_elements):
     offset = np.zeros((len(tendons), n_elements, q, 2))
     slope = np.zeros_like(offset)
     member = np.zeros((len(tendons), n_elements), bool)
-    h = _spacing(scene)
+    arcs = _node_arcs(scene)
     for m, t in enumerate(tendons):
         for part in t.parts:
             k = np.arange(part.first, part.last)
             e = rods[part.rod].first_element + k
-            offset[m, e], slope[m, e] = routing_at(part.routing,
-                                                   (k[:, None] + xi[None, :]) * h[part.rod])
+            s_node = arcs[part.rod]
+            at = s_node[k, None] + xi[None, :] * (s_node[k + 1] - s_node[k])[:, None]
+            offset[m, e], slope[m, e] = routing_at(part.routing, at)
             member[m, e] = True
     static = dict(tendon_names=tuple(t.name for t in tendons),
                   tendon_elements=tuple(tuple(row) for row in member.tolist()),

@@ -2,7 +2,9 @@
 
 Every function returns nodal frames ``(R, p)`` with shapes ``(n+1, 3, 3)`` and
 ``(n+1, 3)``, in the rod's base frame (node 0 at the origin with identity rotation), for
-``n`` elements evenly spaced in arc length. Local x is the centreline tangent.
+nodes placed at the fractions ``u`` (n+1,) of the arc length (0 = base, 1 = tip;
+:func:`even` for equal elements, ``RodSpec.node_fractions`` for a rod whose segments have
+their own lengths). Local x is the centreline tangent.
 
 * straight, arc and helix are curves of constant strain ``f0`` and are placed exactly:
   ``H(s) = exp(s f0)`` (seed eq. 3 with constant f, spec S25, S32), so helical elements
@@ -17,7 +19,7 @@ Every function returns nodal frames ``(R, p)`` with shapes ``(n+1, 3, 3)`` and
   rotation onto the chord ``p[i+1] - p[i-1]`` (:func:`chord_tangents`,
   :func:`aligned_frames`);
   other counts are polylines, resampled like the polyline geometry below.
-* polyline: nodes evenly spaced in arc length along the points; tangents by central
+* polyline: nodes at the fractions ``u`` of the arc length along the points; tangents by central
   differences of the nodes; the section axes follow by parallel transport (rotation-
   minimizing frame) from the base frame.
 """
@@ -47,9 +49,14 @@ def _exp_se3_np(xi):
     return E
 
 
-def constant_strain_frames(strain, length, elements):
-    """Frames ``exp(s_i f0)`` at ``s_i = i L / n`` (spec S25 with constant f)."""
-    s = np.linspace(0.0, length, elements + 1)
+def even(elements):
+    """Fractions ``u`` (elements+1,) of equal elements: ``i / elements``."""
+    return np.linspace(0.0, 1.0, elements + 1)
+
+
+def constant_strain_frames(strain, length, fractions):
+    """Frames ``exp(s_i f0)`` at ``s_i = u_i L`` (spec S25 with constant f)."""
+    s = np.asarray(fractions, float) * length
     H = np.array([_exp_se3_np(si * np.asarray(strain, float)) for si in s])
     return H[:, :3, :3], H[:, :3, 3]
 
@@ -66,12 +73,13 @@ def helix_strain(radius, pitch):
     return np.array([1.0, 0.0, 0.0, b / denom, 0.0, radius / denom])
 
 
-def resample_polyline(points, count):
-    """``count`` points evenly spaced in arc length along a polyline ``points`` (P,3)."""
+def polyline_points(points, fractions):
+    """Points at the fractions ``u`` (n,) of the arc length along a polyline ``points``
+    (P,3)."""
     points = np.asarray(points, float)
     seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
     cum = np.concatenate([[0.0], np.cumsum(seg)])
-    targets = np.linspace(0.0, cum[-1], count)
+    targets = np.asarray(fractions, float) * cum[-1]
     return np.stack([np.interp(targets, cum, points[:, k]) for k in range(3)], axis=1)
 
 
@@ -112,13 +120,14 @@ def aligned_frames(R, tangents):
     return np.array([_rotation_between(Ri[:, 0], ti) @ Ri for Ri, ti in zip(R, tangents)])
 
 
-def polyline_frames(points, elements, start_rotation=None):
-    """Frames of ``elements + 1`` nodes on a polyline (rotation-minimizing, see module doc).
+def polyline_frames(points, fractions, start_rotation=None):
+    """Frames of the nodes at ``fractions`` (n+1,) of a polyline's arc length
+    (rotation-minimizing, see module doc).
 
     ``start_rotation`` (3,3) is the frame whose y, z axes are transported (default I).
     Positions are returned as given (no shift to the origin).
     """
-    nodes = resample_polyline(points, elements + 1)
+    nodes = polyline_points(points, fractions)
     tangents = np.gradient(nodes, axis=0)
     tangents /= np.linalg.norm(tangents, axis=1, keepdims=True)
     R = np.empty((len(nodes), 3, 3))
@@ -131,38 +140,41 @@ def polyline_frames(points, elements, start_rotation=None):
     return R, nodes
 
 
-def reference_frames(geometry, elements):
-    """Stress-free nodal frames of a :class:`~simsoft_jax.scene.GeometrySpec` in the base frame."""
+def reference_frames(geometry, fractions):
+    """Stress-free frames of the nodes at ``fractions`` (n+1,) of the arc length of a
+    :class:`~simsoft_jax.scene.GeometrySpec`, in the base frame."""
     if geometry.kind == "straight":
-        return constant_strain_frames([1.0, 0, 0, 0, 0, 0], geometry.length, elements)
+        return constant_strain_frames([1.0, 0, 0, 0, 0, 0], geometry.length, fractions)
     if geometry.kind == "arc":
         length = geometry.radius * np.deg2rad(geometry.angle_deg)
-        return constant_strain_frames(arc_strain(geometry.radius), length, elements)
+        return constant_strain_frames(arc_strain(geometry.radius), length, fractions)
     if geometry.kind == "helix":
         return constant_strain_frames(helix_strain(geometry.radius, geometry.pitch),
-                                      geometry.arc_length, elements)
+                                      geometry.arc_length, fractions)
     if geometry.kind == "polyline":
-        R, p = polyline_frames(geometry.points, elements)
+        R, p = polyline_frames(geometry.points, fractions)
         return R, p - p[0]
     raise ValueError(f"geometry.kind: unknown kind {geometry.kind!r}")
 
 
-def element_turns(geometry, elements):
-    """Angle (rad) of each element's stress-free relative rotation, (elements,).
+def element_turns(geometry, fractions):
+    """Angle (rad) of each element's stress-free relative rotation, (n,), for the nodes at
+    ``fractions`` (n+1,) of the arc length.
 
-    Arc: ``angle / elements``; helix: ``(arc length / elements) / sqrt(a^2 + b^2)`` (the
+    Arc: ``angle du``; helix: ``(arc length du) / sqrt(a^2 + b^2)`` (the
     magnitude of its curvature-torsion vector); straight: 0; polyline: the angle between
     the node tangents at the element's two ends (the frames are parallel-transported), pi
     where a node has no tangent (the polyline folds back onto itself there).
     """
+    du = np.diff(np.asarray(fractions, float))
     if geometry.kind == "straight":
-        return np.zeros(elements)
+        return np.zeros_like(du)
     if geometry.kind == "arc":
-        return np.full(elements, np.deg2rad(geometry.angle_deg) / elements)
+        return np.deg2rad(geometry.angle_deg) * du
     if geometry.kind == "helix":
         b = geometry.pitch / (2.0 * np.pi)
-        return np.full(elements, geometry.arc_length / elements / np.hypot(geometry.radius, b))
-    nodes = resample_polyline(geometry.points, elements + 1)
+        return geometry.arc_length * du / np.hypot(geometry.radius, b)
+    nodes = polyline_points(geometry.points, fractions)
     tangents = np.gradient(nodes, axis=0)
     norms = np.linalg.norm(tangents, axis=1)
     scale = np.linalg.norm(np.diff(nodes, axis=0), axis=1).max()
@@ -181,21 +193,28 @@ def _constant_strain(geometry):
     return helix_strain(geometry.radius, geometry.pitch)
 
 
-def frames_at(geometry, elements, nodes):
+def frames_at(geometry, fractions, nodes):
     """Stress-free frames ``{node: (R, p)}`` (base frame) of the given nodes only (the
-    constant-strain shapes are evaluated at those nodes, not along the whole rod)."""
+    constant-strain shapes are evaluated at those nodes, not along the whole rod);
+    ``fractions`` (n+1,) place all the nodes."""
     if geometry.kind == "polyline":
-        R, p = reference_frames(geometry, elements)
+        R, p = reference_frames(geometry, fractions)
         return {i: (R[i], p[i]) for i in nodes}
-    f0, ds = _constant_strain(geometry), geometry.arc_length / elements
-    return {i: (H[:3, :3], H[:3, 3]) for i in nodes for H in [_exp_se3_np(i * ds * f0)]}
+    f0, length = _constant_strain(geometry), geometry.arc_length
+    return {i: (H[:3, :3], H[:3, 3]) for i in nodes
+            for H in [_exp_se3_np(fractions[i] * length * f0)]}
 
 
-def element_chords(geometry, elements):
+def element_chords(geometry, fractions):
     """Distance (m) between the two end nodes of each element of the stress-free shape,
-    (elements,). Straight, arc and helix have equal elements (one is computed)."""
+    (n,), for the nodes at ``fractions`` (n+1,). A constant-strain shape's chord depends
+    only on the element's length: one is computed per distinct length."""
     if geometry.kind == "polyline":
-        p = resample_polyline(geometry.points, elements + 1)
+        p = polyline_points(geometry.points, fractions)
         return np.linalg.norm(np.diff(p, axis=0), axis=1)
-    _, p = constant_strain_frames(_constant_strain(geometry), geometry.arc_length / elements, 1)
-    return np.full(elements, np.linalg.norm(p[1] - p[0]))
+    du = np.diff(np.asarray(fractions, float))
+    sizes, which = np.unique(du, return_inverse=True)
+    f0 = _constant_strain(geometry)
+    chord = np.array([np.linalg.norm(constant_strain_frames(f0, geometry.arc_length,
+                                                            [0.0, u])[1][1]) for u in sizes])
+    return chord[which]

@@ -265,7 +265,7 @@ def _stiffness_table(pieces):
 
 def _world_frames(rod):
     """Stress-free frames of a rod in world coordinates: (n+1,3,3), (n+1,3)."""
-    R, p = geom.reference_frames(rod.geometry, rod.elements)
+    R, p = geom.reference_frames(rod.geometry, rod.node_fractions())
     Rb, pb = np.asarray(rod.base_rotation, float), np.asarray(rod.base_position, float)
     return np.einsum("ij,njk->nik", Rb, R), pb + p @ Rb.T
 
@@ -276,7 +276,8 @@ def _initial_frames(rod, R_ref, p_ref):
     As many points as nodes: the node positions exactly, turned by ``initial.rotations``
     (base frame) when given, else each stress-free frame turned by the smallest rotation
     onto the points' chord tangent (a straight rod stretched along itself keeps its
-    reference rotations exactly). Any other count: a polyline, resampled by arc length.
+    reference rotations exactly). Any other count: a polyline, its nodes at the rod's
+    node fractions of its arc length.
     """
     if rod.initial_points is None:
         return R_ref, p_ref
@@ -288,7 +289,7 @@ def _initial_frames(rod, R_ref, p_ref):
         else:
             R = geom.aligned_frames(R_ref, geom.chord_tangents(points) @ Rb.T)
         return R, pb + points @ Rb.T
-    R, p = geom.polyline_frames(points, rod.elements, start_rotation=Rb.T @ R_ref[0])
+    R, p = geom.polyline_frames(points, rod.node_fractions(), start_rotation=Rb.T @ R_ref[0])
     return np.einsum("ij,njk->nik", Rb, R), pb + p @ Rb.T
 
 

@@ -231,13 +231,17 @@ def _node(item: dict, path: str, rod: RodSpec) -> int:
 
 
 def _arc_position(item: dict, path: str, rod: RodSpec) -> float:
-    """``s`` (arc length) in element units: ``s / L * elements`` (nodes are evenly spaced)."""
+    """``s`` (arc length) in element units: node ``k`` plus the fraction of element ``k``
+    (``s / L * elements`` when the elements are equal)."""
     s = number(item["s"], join(path, "s"))
     length = rod.geometry.arc_length
     if not -1e-12 * length <= s <= length * (1.0 + 1e-12):
         fail(join(path, "s"), f"must be in [0, {length:g}] (rod {rod.name!r} arc length), "
              f"got {s}")
-    return min(max(s, 0.0), length) / length * rod.elements
+    s = min(max(s, 0.0), length)
+    if rod.segments and rod.segments[0].length is not None:
+        return float(np.interp(s, rod.node_arc(), np.arange(rod.nodes)))
+    return s / length * rod.elements
 
 
 def _load_place(ld: dict, path: str, rod: RodSpec) -> dict[str, Any]:

@@ -81,13 +81,16 @@ def check_point_loads_in_elements(items: list, loads: tuple) -> None:
                  "use more elements or put the loads at the same s")
 
 
-def check_elements(geometry: GeometrySpec, elements: int, path: str) -> None:
-    """Every element of the stress-free shape must turn by at most MAX_ELEMENT_TURN_DEG
-    (a helical element cannot represent a rotation near pi, and is far too stiff well
-    before that) and have a length; the error says how many elements would do.
-    Polylines are checked for zero lengths first (a fold back onto itself)."""
+def check_elements(geometry: GeometrySpec, fractions, path: str) -> None:
+    """Every element of the stress-free shape (nodes at ``fractions`` (n+1,) of the arc
+    length) must turn by at most MAX_ELEMENT_TURN_DEG (a helical element cannot represent
+    a rotation near pi, and is far too stiff well before that) and have a length; the error
+    says how many elements would do. Polylines are checked for zero lengths first (a fold
+    back onto itself)."""
+    elements = len(fractions) - 1
+
     def check_length():
-        lengths = element_chords(geometry, elements)
+        lengths = element_chords(geometry, fractions)
         if lengths.min() <= 1e-9 * geometry.arc_length / elements:
             fail(path, f"element {int(np.argmin(lengths))} of {elements} has zero length "
                  "(its two nodes coincide in the stress-free shape: the shape folds back "
@@ -96,14 +99,15 @@ def check_elements(geometry: GeometrySpec, elements: int, path: str) -> None:
 
     if geometry.kind == "polyline":
         check_length()
-    turns = np.degrees(element_turns(geometry, elements))
+    turns = np.degrees(element_turns(geometry, fractions))
     worst = float(turns.max())
     if worst > MAX_ELEMENT_TURN_DEG * (1.0 + 1e-9):
         need = max(elements + 1, math.ceil(elements * worst / MAX_ELEMENT_TURN_DEG - 1e-9))
         advice = (f"use elements >= {need}" if geometry.kind != "polyline" else
                   "the polyline turns too sharply there: round its corners with more "
                   "points (a corner stays a corner however many elements)")
-        fail(path, f"element {int(np.argmax(turns))} of {elements} turns by {worst:.4g} "
+        first = int(np.argmax(turns >= worst * (1.0 - 1e-12)))   # ties up to round-off
+        fail(path, f"element {first} of {elements} turns by {worst:.4g} "
              f"degrees in the stress-free shape, more than the limit "
              f"{MAX_ELEMENT_TURN_DEG:g} degrees per element; {advice}")
     check_length()

@@ -16,14 +16,14 @@ from .materials import BUILTIN_MATERIALS, Material, get_material
 from .scene_attachments import parse_stiffness
 from .scene_initial import parse_initial
 from .scene_limits import MAX_ELEMENTS, check_elements
-from .scene_specs import GeometrySpec, RodSpec, SegmentSpec
+from .scene_specs import GeometrySpec, RodSpec, SegmentSpec, node_fractions
 from .sections import Section, circle, custom_inertia, rectangle, semicircle, tube
 
 MATERIAL_KEYS = ("name", "E", "G", "nu", "density", "viscosity", "mass_damping")
 ROD_KEYS = ("name", "material", "section", "shear_coefficients", "stiffness", "inertia",
              "elements", "geometry", "base", "initial", "segments", "contact_radius")
 SEGMENT_KEYS = ("elements", "material", "section", "shear_coefficients", "stiffness",
-                 "inertia")
+                 "inertia", "length")
 SECTIONS = {"circle": (circle, ("diameter",)),
              "tube": (tube, ("outer_diameter", "inner_diameter")),
              "rectangle": (rectangle, ("width", "height")),
@@ -117,9 +117,25 @@ def _parse_segments(value: Any, path: str, materials: dict[str, Material],
         seg = table(item, ipath)
         check_keys(seg, ipath, SEGMENT_KEYS, required=("elements",))
         props = _parse_properties(seg, ipath, materials, material)
+        if "length" in seg:
+            props["length"] = positive(seg["length"], join(ipath, "length"))
         segments.append(SegmentSpec(
             elements=integer(seg["elements"], join(ipath, "elements"), minimum=1), **props))
+    given = ["length" in item for item in value]
+    if any(given) and not all(given):
+        fail(index(path, given.index(False) if given[0] else given.index(True)),
+             "give every segment a length, or none (the elements are then equal)")
     return tuple(segments)
+
+
+def _check_segment_lengths(segments, geometry: GeometrySpec, path: str) -> None:
+    """The segments' lengths must add up to the geometry's arc length (to 1e-9 of it)."""
+    if not segments or segments[0].length is None:
+        return
+    total, arc = sum(seg.length for seg in segments), geometry.arc_length
+    if abs(total - arc) > 1e-9 * arc:
+        fail(path, f"the segments' lengths add up to {total:.12g} m, but the geometry's "
+             f"arc length is {arc:.12g} m; they must be equal")
 
 
 def parse_rod(r: dict, path: str, materials: dict[str, Material],
@@ -146,7 +162,8 @@ def parse_rod(r: dict, path: str, materials: dict[str, Material],
         fail(join(path, "elements"), f"must be <= {MAX_ELEMENTS} (the limit per scene), "
              f"got {elements}")
     geometry = _parse_geometry(r["geometry"], join(path, "geometry"))
-    check_elements(geometry, elements, join(path, "geometry"))
+    _check_segment_lengths(segments, geometry, join(path, "segments"))
+    check_elements(geometry, node_fractions(elements, segments), join(path, "geometry"))
 
     position, rotation = np.zeros(3), np.eye(3)
     if "base" in r:

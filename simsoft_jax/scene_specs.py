@@ -73,6 +73,28 @@ class RodSpec(SpecBase):
     def nodes(self) -> int:
         return self.elements + 1
 
+    def node_fractions(self) -> np.ndarray:
+        """Where the nodes sit, as fractions (nodes,) of the arc length (0 at the base, 1
+        at the tip): equal elements, or equal within each segment of given ``length``."""
+        return node_fractions(self.elements, self.segments)
+
+    def node_arc(self) -> np.ndarray:
+        """Arc length (m) of each node along the stress-free shape from the base, (nodes,)."""
+        return self.node_fractions() * self.geometry.arc_length
+
+
+def node_fractions(elements: int, segments=None) -> np.ndarray:
+    """Node places as fractions (elements+1,) of the arc length: ``i / elements``, or, when
+    the segments give their lengths, equal elements within each segment (the last node
+    exactly at 1)."""
+    if not segments or segments[0].length is None:
+        return np.linspace(0.0, 1.0, elements + 1)
+    total = sum(seg.length for seg in segments)
+    starts = np.concatenate([[0.0], np.cumsum([seg.length for seg in segments])]) / total
+    inner = [start + (end - start) * np.arange(seg.elements) / seg.elements
+             for seg, start, end in zip(segments, starts, starts[1:])]
+    return np.concatenate([*inner, [1.0]])
+
 
 @dataclass(frozen=True, eq=False)
 class SegmentSpec(SpecBase):
@@ -84,6 +106,7 @@ class SegmentSpec(SpecBase):
     shear_coefficients: tuple[float, float] | None
     stiffness: np.ndarray | None
     inertia: np.ndarray | None
+    length: float | None = None       # m of arc length (None: the rod's elements are equal)
 
 
 @dataclass(frozen=True, eq=False)

@@ -108,4 +108,4 @@ def stress_free_frames(rod, nodes):
     shape (its geometry placed by its base)."""
     Rb, pb = np.asarray(rod.base_rotation, float), np.asarray(rod.base_position, float)
     return {i: (Rb @ R, pb + Rb @ p)
-            for i, (R, p) in frames_at(rod.geometry, rod.elements, nodes).items()}
+            for i, (R, p) in frames_at(rod.geometry, rod.node_fractions(), nodes).items()}
