@@ -12,6 +12,7 @@ import copy
 import dataclasses
 import json
 import sys
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -217,7 +218,8 @@ def _rod_of(item: dict, path: str, rods: dict[str, RodSpec]) -> RodSpec:
 
 
 def _node(item: dict, path: str, rod: RodSpec) -> int:
-    """Resolve ``node`` (negative counts from the end) or ``s`` (arc length) to an index."""
+    """Resolve ``node`` (negative counts from the end) or ``s`` (arc length) to an index:
+    the nearest node, with a warning when ``s`` is not on a node."""
     if ("node" in item) == ("s" in item):
         fail(path, "give exactly one of node, s")
     n = rod.nodes
@@ -227,7 +229,15 @@ def _node(item: dict, path: str, rod: RodSpec) -> int:
             fail(join(path, "node"), f"out of range for rod {rod.name!r} with {n} nodes "
                  f"(allowed {-n}..{n - 1}), got {node}")
         return node % n
-    return int(round(_arc_position(item, path, rod)))
+    x = _arc_position(item, path, rod)
+    node = int(round(x))
+    if abs(x - node) > 1e-9:
+        arc = rod.node_arc()
+        warnings.warn(f"{join(path, 's')} = {item['s']:g} m lies between nodes; it is placed "
+                      f"at the nearest node {node} (s = {arc[node]:.6g} m, "
+                      f"{abs(item['s'] - arc[node]):.3g} m away). To place it exactly, put a "
+                      "node there: rods[].segments with their length", stacklevel=2)
+    return node
 
 
 def _arc_position(item: dict, path: str, rod: RodSpec) -> float:

@@ -1,4 +1,6 @@
 """Rods whose section changes along the length (``rods[].segments``)."""
+import warnings
+
 import numpy as np
 import pytest
 
@@ -102,6 +104,21 @@ def test_segment_constants_land_on_their_elements():
     ei = np.asarray(model.stiffness)[:, 4]
     assert np.allclose(ei[:3], _bending_stiffness(3.48e-3, 2.54e-3), rtol=1e-12)
     assert np.allclose(ei[3:], _bending_stiffness(2.13e-3, 1.0e-3), rtol=1e-12)
+
+
+def test_a_mass_by_s_between_nodes_warns_and_lengths_put_a_node_there():
+    """A mass at s = 0.07 m falls between the nodes of equal elements (0.06, 0.08): it is
+    placed on the nearest node with a warning that says how far; with segment lengths
+    ending at 0.07 m the mass sits on node 3 exactly, without a warning."""
+    mass = {"rod": "cath", "s": 0.07, "mass": 0.01}
+    with pytest.warns(UserWarning, match=r"masses\[0\]\.s = 0\.07 m lies between nodes; "
+                      r"it is placed at the nearest node 4 \(s = 0\.08 m, 0\.01 m away\)"):
+        scene = sj.Scene.from_dict({**catheter(), "masses": [mass]})
+    assert scene.masses[0].node == 4
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        scene = sj.Scene.from_dict({**lengths_catheter(), "masses": [mass]})
+    assert scene.masses[0].node == 3
 
 
 @pytest.mark.parametrize("changes, path", [
