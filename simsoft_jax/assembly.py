@@ -195,7 +195,8 @@ def element_data(model: Model, maps=None, masses=None) -> ElementData:
 
 def contact_data(model: Model):
     """Per-element :class:`~simsoft_jax.terms.contact.ContactData` (E, ...), the obstacle
-    rows broadcast to every element; None when the scene has no obstacles."""
+    rows broadcast to every element, the end caps (E,2) the contact radius at each rod's
+    first and last node; None when the scene has no obstacles."""
     if not model.structure.obstacle_kinds:
         return None
     n = model.length.shape[0]
@@ -203,9 +204,13 @@ def contact_data(model: Model):
     def each(a):
         return jnp.broadcast_to(a, (n,) + jnp.shape(a))
 
+    ends = np.zeros((n, 2))
+    for info in model.structure.rods:
+        ends[info.first_element, 0] = ends[info.first_element + info.elements - 1, 1] = 1.0
     return contact.ContactData(model.contact_radius, model.contact_stiffness,
                                each(model.obstacles), each(model.obstacle_friction),
-                               each(model.slip_velocity), each(model.obstacle_velocity))
+                               each(model.slip_velocity), each(model.obstacle_velocity),
+                               jnp.asarray(ends) * model.contact_radius[:, None])
 
 
 def static_friction_and_tangent(model: Model, R, p, previous, tangent: bool = True):

@@ -2,9 +2,11 @@
 normal part, the largest penetration and the nodes in contact (result ``"contacts"``).
 
 From the penalty of :mod:`simsoft_jax.terms.contact` at the solution's frames: the force
-of obstacle k on the rods is ``sum_e L_e sum_i w_i psi'(delta_ik) n_ik`` (N, world), its
-normal part the same sum of magnitudes ``psi'`` (N) (friction not included); a node is in
-contact when an element it belongs to has a quadrature point with positive penetration.
+of obstacle k on the rods is ``sum_e sum_i c_i psi'(delta_ik) n_ik`` (N, world; ``c_i``
+the stations' weights, end caps included), its normal part the same sum of magnitudes
+``psi'`` (N) (friction not included); the largest penetration is over every station
+(Gauss points and nodes); a node is in contact when an element it belongs to has a
+station with positive penetration.
 """
 from __future__ import annotations
 
@@ -55,14 +57,14 @@ def report(model, R, p, time=None) -> dict | None:
     ``R`` (N,3,3), ``p`` (N,3) (a static state: floats, (3,) and ``{rod: [nodes]}``) or
     (T,N,3,3), (T,N,3) at the times ``time`` (T,) s (a trajectory: each with a leading
     time axis, ``nodes`` a list per time; moving obstacles taken where they are at each
-    time); None when the scene has no obstacles. With rod-rod contact (static) the entry
+    time); None when the scene has no obstacles. With rod-rod contact the entry
     ``SELF_NAME`` (``"rods"``) holds :func:`simsoft_jax.rod_pairs.report`."""
     s = model.structure
     if not s.obstacle_kinds and not s.self_contact:
         return None
     R, p = jnp.asarray(R), jnp.asarray(p)
     out = {}
-    if s.self_contact:      # static only (scene_contact.check_self_contact)
+    if s.self_contact:
         out[SELF_NAME] = rod_pairs.report(model, R, p)
     if not s.obstacle_kinds:
         return out

@@ -129,16 +129,22 @@ class Coupling(NamedTuple):
     D: jax.Array
 
 
-def system(model, R, p, r, blocks):
+def system(model, R, p, r, blocks, T=None):
     """Add the rod-rod contact to a masked residual ``r`` (N,6) and block-tridiagonal
     tangent ``blocks`` (held dofs already identity rows): returns ``(r, blocks,
-    Coupling)`` of the bordered Newton system (module docstring)."""
+    Coupling)`` of the bordered Newton system (module docstring). ``T`` (N,6,6): the
+    maps ``T_SE3(w)`` of a dynamic step's increments ``w`` (the unknowns there), which
+    multiply each node's columns of the pairs' tangents (None: statics, identity)."""
     s = model.structure
     mask = s.free_mask()
     pairs = find_pairs(model, R, p)
     m = s.contact_points
     g, k = jax.vmap(lambda *a: rod_contact.pair_residual_and_tangent(*a, m))(
         *_pair_args(model, R, p, pairs))
+    if T is not None:
+        P = k.shape[0]
+        k = jnp.einsum("pqnj,pnjk->pqnk", k.reshape(P, 24, 4, 6),
+                       T[pairs.nodes]).reshape(P, 24, 24)
     on = pairs.active.astype(p.dtype)
     g, k = g * on[:, None], k * on[:, None, None]
     r = r + jnp.where(pairs.overflow, jnp.nan, _scatter(s.n_nodes, pairs.nodes, g)) * mask
@@ -199,16 +205,32 @@ def report(model, R, p) -> dict:
     ``normal_force`` (N, the sum over pairs of ``sum h h l psi'``), ``force`` (3,) N (the
     total contact force on all rods: zero by Newton's third law), ``rod_force``
     (``{rod: (3,)}`` N, world: the contact force on each rod), ``max_penetration`` (m)
-    and ``nodes`` (``{rod: [node, ...]}``: nodes of elements with a penetrating pair)."""
-    normal, per_element, pen, touching = jax.device_get(_summary(model, R, p))
+    and ``nodes`` (``{rod: [node, ...]}``: nodes of elements with a penetrating pair).
+    Frames (T,N,3,3), (T,N,3) of a trajectory give each with a leading time axis
+    (``nodes``: a list per time)."""
+    summary = jax.vmap(_summary, (None, 0, 0)) if p.ndim == 3 else _summary
+    normal, per_element, pen, touching = jax.device_get(summary(model, R, p))
     s = model.structure
     rod_force, nodes = {}, {}
     for info in s.rods:
         span = slice(info.first_element, info.first_element + info.elements)
-        rod_force[info.name] = per_element[span].sum(0)
-        hit = np.zeros(info.nodes, bool)
-        hit[:-1] |= touching[span]
-        hit[1:] |= touching[span]
-        nodes[info.name] = np.flatnonzero(hit).tolist()
-    return {"normal_force": normal, "force": per_element.sum(0), "rod_force": rod_force,
+        rod_force[info.name] = per_element[..., span, :].sum(-2)
+        hits = touching[..., span].reshape(-1, info.elements)
+        per_time = []
+        for hit_elements in hits:
+            hit = np.zeros(info.nodes, bool)
+            hit[:-1] |= hit_elements
+            hit[1:] |= hit_elements
+            per_time.append(np.flatnonzero(hit).tolist())
+        nodes[info.name] = per_time if p.ndim == 3 else per_time[0]
+    return {"normal_force": normal, "force": per_element.sum(-2), "rod_force": rod_force,
             "max_penetration": pen, "nodes": nodes}
+
+
+def energy(model, R, p):
+    """Penalty energy (J) of the rod-rod contact at frames R (N,3,3), p (N,3): the sum of
+    :func:`simsoft_jax.terms.rod_contact.pair_energy` over the active candidate pairs."""
+    pairs = find_pairs(model, R, p)
+    m = model.structure.contact_points
+    each = jax.vmap(lambda *a: rod_contact.pair_energy(*a, m))(*_pair_args(model, R, p, pairs))
+    return jnp.sum(each * pairs.active)

@@ -145,7 +145,7 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
                                 solver.kind == "dynamic")
     contact = parse_contact(raw["contact"]) if "contact" in raw else None
     check_self_contact(contact, solver.kind, bool(bodies or joints),
-                       [o.name for o in obstacles])
+                       [o.name for o in obstacles], constraints, tendons)
     if solver.kind == "dynamic":
         warn_short_features(loads, constraints, solver.dt)
     check_loads_on_held_nodes(raw.get("loads", []), loads, constraints)

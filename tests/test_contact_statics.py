@@ -353,3 +353,42 @@ def test_cli_run_writes_contacts_into_the_result_file(lifted, tmp_path):
     np.testing.assert_allclose(table["force"], [0.0, 0.0, table["normal_force"]], atol=1e-9)
     assert 0.0 < table["max_penetration"] < 1e-3 * R_CONTACT
     assert written["drum"]["nodes"] == {"rod": []} and written["drum"]["normal_force"] == 0.0
+
+
+def test_free_end_pushed_into_a_wall_meets_it_at_the_end_cap():
+    """A cantilever along x whose tip touches a wall (plane x = L + r) is pulled into it
+    by an axial tip force F. The wall acts on the end cap only (the Gauss points stay a
+    fraction of an element behind the tip), a length r of the line penalty: the tip's
+    penetration delta solves ``F = (EA/L) delta + r psi'(delta)`` (the rod's axial spring
+    and the cap; psi' the penalty's stated pieces, solved here by bisection). Before the
+    caps the wall did not hold the tip at all (delta = F L / EA, four times more here)."""
+    L, r, k, EA, F = 0.2, 1e-3, 9e9, 6e5, 2000.0
+    scene = {"solver": {"kind": "static", "load_steps": 4, "tolerance": 1e-12},
+             "rods": [{"name": "rod", "elements": 4, "geometry": {"kind": "straight", "length": L},
+                       "stiffness": {"EA": EA, "GAy": EA, "GAz": EA, "GJ": 1.0, "EIy": 1.0,
+                                     "EIz": 1.0},
+                       "inertia": {"rhoA": 1.0, "rhoJ": 1e-6, "rhoIy": 1e-6, "rhoIz": 1e-6}}],
+             "constraints": [{"kind": "clamp", "rod": "rod", "node": 0}],
+             "loads": [{"kind": "force", "rod": "rod", "node": -1, "vector": [F, 0.0, 0.0]}],
+             "obstacles": [{"name": "wall", "kind": "plane", "point": [L + r, 0.0, 0.0],
+                            "normal": [-1.0, 0.0, 0.0]}],
+             "contact": {"radius": r, "stiffness": k}}
+    result = sj.run(scene, stability=False)
+    assert result.converged
+    eps = contact.SMOOTHING * r
+
+    def slope(delta):                      # the penalty's pieces, as documented
+        return k * delta**2 / (2 * eps) if delta < eps else k * (delta - eps / 2)
+
+    lo, hi = 0.0, F * L / EA
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if EA / L * mid + r * slope(mid) < F else (lo, mid)
+    delta = 0.5 * (lo + hi)
+    assert delta < 0.3 * F * L / EA
+    tip = result.positions("rod")[-1]
+    assert tip[0] - L == pytest.approx(delta, rel=1e-8)
+    wall = result.contacts["wall"]
+    assert wall["max_penetration"] == pytest.approx(delta, rel=1e-8)
+    assert wall["normal_force"] == pytest.approx(r * slope(delta), rel=1e-8)
+    assert wall["nodes"]["rod"] == [3, 4]

@@ -49,8 +49,11 @@ class _NewtonCarry(NamedTuple):
 
 
 def _unknowns(structure, x, z):
-    """Nodal increments (N,6) and multipliers (M,) from the bordered solution (x, z)."""
-    return mechanisms.split(structure, x, z) if structure.joints else (x, z)
+    """Nodal increments (N,6) and multipliers (M,) from the bordered solution (x, z)
+    (rod-rod contact borders auxiliary unknowns, no multipliers)."""
+    if structure.joints:
+        return mechanisms.split(structure, x, z)
+    return (x, z[:0]) if structure.self_contact else (x, z)
 
 
 class StepResult(NamedTuple):

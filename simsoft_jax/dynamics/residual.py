@@ -19,7 +19,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .. import element, inertia, lie, mechanisms, tendon_control
+from .. import element, inertia, lie, mechanisms, rod_pairs, tendon_control
 from ..assembly import (_nodal_load, apply_constraints, assemble_blocks, assemble_vector,
                         dead_distributed_force, element_data, element_force_and_tangent,
                         element_poses, follower_distributed_load, nodal_load_and_tangent,
@@ -62,18 +62,12 @@ def _element_velocities(model: Model, v, vd):
             jnp.concatenate([vd[a], vd[a + 1]], axis=1))
 
 
-def refuse_rod_contact(structure) -> None:
-    """Rod-rod contact (:mod:`simsoft_jax.rod_pairs`) is a static term only: a clear error
-    rather than a dynamic run that leaves it out."""
-    if structure.self_contact:
-        raise ValueError("contact.self: rod-rod contact is supported in static solves only")
-
-
 def dynamic_residual(model: Model, inert: ElementInertia, R, p, v, vd, masked=True):
-    """Global dynamic residual (N,6) (spec S47), held dofs zeroed (unless ``masked=False``).
-    ``model`` holds the loads at the time of evaluation (:func:`loads.loads_at`)."""
+    """Global dynamic residual (N,6) (spec S47), held dofs zeroed (unless ``masked=False``),
+    rod-rod contact included (:mod:`simsoft_jax.rod_pairs`; scenes with it have no sliding
+    drive, the only caller of ``masked=False``). ``model`` holds the loads at the time of
+    evaluation (:func:`loads.loads_at`)."""
     s = model.structure
-    refuse_rod_contact(s)
     residual = term_tangents.element_residual(s, 1.0, dynamic=True)
     f = jax.vmap(lambda RA, pA, RB, pB, ve, vde, data: residual(
         element_state(RA, pA, RB, pB, ve, vde), data))(
@@ -85,6 +79,8 @@ def dynamic_residual(model: Model, inert: ElementInertia, R, p, v, vd, masked=Tr
     attached = attachments_and_tangents(model, 1.0, R, v, vd, dynamic=True)
     if attached is not None:
         r = r + attached[0]
+    if s.self_contact:
+        r = r + rod_pairs.residual(model, R, p)
     return r * s.free_mask() if masked else r
 
 
@@ -93,9 +89,9 @@ def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p,
     """Residual (N,6) and block-tridiagonal ``M beta' + C_t gamma' + K_t T(w)`` (S61, S66).
     ``slide = (C, B, mask)`` (see :func:`drives.slide_maps`) reduces sliding drive nodes to their
     slide unknown before the held dofs are eliminated. ``tangent``: the element-block path
-    (module docstring)."""
+    (module docstring). Rod-rod contact is not in it: :func:`step_functions` borders it
+    on (:func:`simsoft_jax.rod_pairs.system`)."""
     s = model.structure
-    refuse_rod_contact(s)
     n = s.n_nodes
     a = jnp.asarray(s.element_nodes)
     dead, follower = dead_distributed_force(model, 1.0), follower_distributed_load(model, 1.0)
@@ -181,10 +177,13 @@ class StepFunctions(NamedTuple):
 def border_sizes(structure) -> tuple[int, int]:
     """``(m, M)``: the unknowns beside the rods' chains in a dynamic step and how many of
     them are multipliers: the joints' coupling set (:mod:`simsoft_jax.mechanisms`), or
-    one tension per displacement-controlled tendon (the scene refuses both in one
-    dynamic scene), or none."""
+    one tension per displacement-controlled tendon, or the 6 dofs of each node the
+    rod-rod contact pairs may couple (no multipliers; :mod:`simsoft_jax.rod_pairs`), or
+    none (the scene refuses any two of them in one dynamic scene)."""
     if structure.joints:
         return mechanisms.coupling_count(structure), mechanisms.multiplier_count(structure)
+    if structure.self_contact:
+        return 6 * rod_pairs.coupled_nodes(structure), 0
     k = len(tendon_control.displaced(structure))
     return k, k
 
@@ -222,6 +221,8 @@ def step_functions(model, inert, rho_inf, state: State, h,
                                              beta_p, gamma_p, slide, tangent)
 
     joints = bool(model.structure.joints)
+    touching = bool(model.structure.self_contact)
+    pair_dofs = border_sizes(model.structure)[0] if touching else 0
     displaced = jnp.asarray(tendon_control.displaced(model.structure), dtype=int)
 
     def pulled(mu):
@@ -240,6 +241,8 @@ def step_functions(model, inert, rho_inf, state: State, h,
             return (dynamic_residual(pulled(mu), inert, s1.R, s1.p, s1.v, s1.vd),
                     length_mismatch(w))
         r = newton_residual(w)
+        if touching:    # the border's rows W U^T x - y = 0 hold exactly in every solve
+            return r, jnp.zeros(pair_dofs, r.dtype)
         if not joints:
             return r, mu
         s1 = new_state(w)
@@ -256,6 +259,12 @@ def step_functions(model, inert, rho_inf, state: State, h,
             return mechanisms.Coupled(r, blocks, B, C, jnp.zeros((mu.size,) * 2, r.dtype),
                                       length_mismatch(w))
         r, blocks = residual_and_matrix(w)
+        if touching:    # rod-rod contact: bordered with its cross blocks
+            s1 = new_state(w)
+            r, blocks, cpl = rod_pairs.system(loaded, s1.R, s1.p, r, blocks,
+                                              jax.vmap(lie.tangent_se3)(w))
+            return mechanisms.Coupled(r, blocks, cpl.B, cpl.C, cpl.D,
+                                      jnp.zeros(pair_dofs, r.dtype))
         if not joints:
             n = r.shape[0]
             return mechanisms.Coupled(r, blocks, jnp.zeros((n, 6, 0), r.dtype),

@@ -5,7 +5,13 @@ Where. The centreline point at ``xi`` in [0, 1] is the position part of
 ``H_A exp(xi d)`` (spec S33): ``x(xi) = p_A + R_A T_SO3(xi d_w)^T (xi d_u)``; contact is
 looked for at the ``n`` Gauss-Legendre points of the element (``[contact]
 quadrature_points``), so a coarse rod cannot pass through an obstacle smaller than an
-element between its nodes.
+element between its nodes, and at its two nodes (``xi = 0, 1``). The nodes carry weight
+only at a rod's two ends, the end caps: there the station stands for the rod's rounded
+end, a length ``r`` (the contact radius) of the line penalty, so a free end pushed into
+an obstacle meets it at the node instead of sinking until a Gauss point, a fraction of
+an element behind the end, touches (an end pushed with a force ``F`` sinks by
+``delta ~ F / (k r) + eps / 2``). At the other nodes the weight is 0: their stations
+count only in the reported penetration.
 
 Normal contact (penalty). With the obstacle's signed distance ``phi(x)``
 (:mod:`simsoft_jax.obstacles`) and the rod's contact radius ``r``, the gap is
@@ -21,14 +27,15 @@ the smoothing width) and ``eps = SMOOTHING * r`` (a cubic start, so the force
 ``psi'(delta)`` and its slope are continuous and Newton sees no kink). A line load ``q``
 (N/m) pressing the rod on an obstacle sinks it by ``delta ~ q/k + eps/2`` (or
 ``sqrt(2 eps q/k)`` while ``delta < eps``). The element's energy is
-``L sum_i w_i sum_k psi(delta_k(x(xi_i)))`` (Gauss weights ``w_i`` on [0, 1], ``L`` the
-reference length).
+``sum_i c_i sum_k psi(delta_k(x(xi_i)))`` with the station weights ``c_i`` (m): ``L w_i``
+at the Gauss points (weights ``w_i`` on [0, 1], ``L`` the reference length), the cap
+lengths at the two nodes (:func:`station_weights`).
 
 Nodal forces. The right perturbations of the two nodal frames move the section at ``xi``
 by the twist ``N(xi, d) [dq_A; dq_B]`` (the velocity-field map, spec S38,
 :func:`simsoft_jax.element.velocity_field_map`), so ``dx = R(xi) (N dq)_u``: the exact
 derivative of the energy in those perturbations is
-``L sum_i w_i N_i^T [R_i^T (-psi'(delta) grad phi); 0]`` (residual side; the obstacle
+``sum_i c_i N_i^T [R_i^T (-psi'(delta) grad phi); 0]`` (residual side; the obstacle
 pushes along ``+grad phi``). Tangents by ``jax.jacfwd`` (:mod:`.autodiff` and
 :func:`simsoft_jax.assembly.contact_and_tangent`).
 
@@ -58,19 +65,34 @@ class ContactData(NamedTuple):
     """An element's contact arrays: radius () m, stiffness () N/m^2 (penalty ``k``),
     obstacles (K,11) parameter rows (:mod:`simsoft_jax.obstacles`), friction (K,) Coulomb
     coefficients, slip_velocity () m/s, velocity (K,3) m/s of the (translating)
-    obstacles."""
+    obstacles, caps (2,) m the end-cap lengths of its nodes A and B (the radius at a
+    rod's end, else 0; None: no caps)."""
     radius: jax.Array
     stiffness: jax.Array
     obstacles: jax.Array
     friction: jax.Array
     slip_velocity: jax.Array
     velocity: jax.Array
+    caps: jax.Array = None
 
 
 def quadrature(n: int):
     """Gauss-Legendre points (n,) and weights (n,) on [0, 1] (weights sum to 1)."""
     x, w = np.polynomial.legendre.leggauss(n)
     return 0.5 * (x + 1.0), 0.5 * w
+
+
+def station_points(n: int):
+    """``xi`` (n+2,) of an element's contact stations: its ``n`` Gauss points, then its
+    nodes A (0) and B (1)."""
+    return np.concatenate([quadrature(n)[0], [0.0, 1.0]])
+
+
+def station_weights(length, caps, n: int):
+    """Weights (n+2,) m of the stations: ``L w_i`` at the Gauss points, the cap lengths
+    ``caps`` (2,) at the nodes (zeros when None)."""
+    w = jnp.asarray(quadrature(n)[1]) * length
+    return jnp.concatenate([w, jnp.zeros(2, w.dtype) if caps is None else caps])
 
 
 def penalty_slope(delta, k, eps):
@@ -97,10 +119,10 @@ def _gap_and_normal(kind, params, radius, x):
 
 
 def stations(RA, pA, d, data: ContactData, kinds: tuple, n: int):
-    """Per quadrature point and obstacle: the penetration (n,K) m, the normal line load
-    ``psi'`` (n,K) N/m and the unit normals (n,K,3) (world), and the section frames
-    (n,3,3), (n,3) at the quadrature points."""
-    xi, _ = quadrature(n)
+    """Per station (:func:`station_points`, S = n+2) and obstacle: the penetration (S,K) m,
+    the normal line load ``psi'`` (S,K) N/m and the unit normals (S,K,3) (world), and the
+    section frames (S,3,3), (S,3) at the stations."""
+    xi = station_points(n)
     R, x = jax.vmap(lambda t: centreline_point(RA, pA, d, t))(jnp.asarray(xi))
     eps = SMOOTHING * data.radius
     pen, load, normals = [], [], []
@@ -118,7 +140,7 @@ def force(el, data: ContactData, length, kinds: tuple, n: int, friction: bool = 
     element (:class:`~simsoft_jax.terms.Element` ``el`` with ``el.pA``) with the obstacles
     ``kinds`` (static), residual side (module docstring); ``length`` the element's
     reference length (m), ``n`` the quadrature points."""
-    xi, w = quadrature(n)
+    xi = station_points(n)
     _, load, normals, R, _ = stations(el.RA, el.pA, el.d, data, kinds, n)
     maps = jax.vmap(lambda t: element.velocity_field_map(t, el.d, el.P))(jnp.asarray(xi))
     f = jnp.einsum("nk,nki->ni", load, normals)                  # world line load (n,3)
@@ -131,23 +153,23 @@ def force(el, data: ContactData, length, kinds: tuple, n: int, friction: bool = 
         f = f - jnp.einsum("nk,nki->ni", data.friction * load / slip, vt)
     local = jnp.einsum("nji,nj->ni", R, f)                         # R^T f
     wrench = jnp.concatenate([local, jnp.zeros_like(local)], axis=1)
-    return -length * jnp.einsum("n,nji,nj->i", jnp.asarray(w), maps, wrench)
+    return -jnp.einsum("n,nji,nj->i", station_weights(length, data.caps, n), maps, wrench)
 
 
 def energy(RA, pA, RB, pB, data: ContactData, length, kinds: tuple, n: int):
     """Penalty energy (J) of one element given its two nodal frames (module docstring)."""
-    _, w = quadrature(n)
     d = element.relative_twist(RA, pA, RB, pB)
     pen, _, _, _, _ = stations(RA, pA, d, data, kinds, n)
     eps = SMOOTHING * data.radius
-    return length * jnp.sum(jnp.asarray(w)[:, None] * penalty(pen, data.stiffness, eps))
+    weights = station_weights(length, data.caps, n)
+    return jnp.sum(weights[:, None] * penalty(pen, data.stiffness, eps))
 
 
 def summary(RA, pA, d, data: ContactData, length, kinds: tuple, n: int):
     """Per obstacle (K,): the force of the obstacle on the element (K,3) N (world), its
-    normal part ``sum L w psi'`` (K,) N, and the largest penetration (K,) m (0 if none)."""
-    _, w = quadrature(n)
+    normal part ``sum c psi'`` (K,) N, and the largest penetration (K,) m at any of its
+    stations, nodes included (0 if none)."""
     pen, load, normals, _, _ = stations(RA, pA, d, data, kinds, n)
-    weights = length * jnp.asarray(w)[:, None]
+    weights = station_weights(length, data.caps, n)[:, None]
     return (jnp.einsum("nk,nki->ki", weights * load, normals),
             jnp.sum(weights * load, 0), jnp.maximum(pen.max(0), 0.0))

@@ -25,8 +25,8 @@ holding a tangential line load ``t mu f_n`` (``t < 1``) while the loads are held
 by ``u_s t / sqrt(1 - t^2)`` per level (the same creep as the rate law's at slip
 velocities below ``v_s``), so ``u_s`` should be small against the slips of interest.
 
-Nodal forces, as for the normal contact: ``L sum_i w_i N_i^T [R_i^T (-f_t); 0]`` (residual
-side), ``N_i`` the velocity-field map at ``xi_i`` (spec S38), ``R_i`` the section's
+Nodal forces, as for the normal contact: ``sum_i c_i N_i^T [R_i^T (-f_t); 0]`` (residual
+side, ``c_i`` the stations' weights of :func:`simsoft_jax.terms.contact.station_weights`), ``N_i`` the velocity-field map at ``xi_i`` (spec S38), ``R_i`` the section's
 rotation; the tangent by ``jax.jacfwd`` (:func:`simsoft_jax.assembly.static_friction_and_tangent`)
 in the current frames with the previous stations fixed. (F1) is not the gradient of a
 potential: the tangent is not symmetric.
@@ -41,10 +41,10 @@ from . import contact
 
 
 def stations(RA, pA, d, n: int):
-    """Positions (n,3) (m, world) of the ``n`` contact stations of an element with the
-    frame ``(RA, pA)`` of node A and relative twist ``d`` (6,) (the Gauss points of
-    :func:`simsoft_jax.terms.contact.quadrature`)."""
-    xi, _ = contact.quadrature(n)
+    """Positions (n+2,3) (m, world) of the contact stations of an element with the frame
+    ``(RA, pA)`` of node A and relative twist ``d`` (6,) (its ``n`` Gauss points and two
+    nodes, :func:`simsoft_jax.terms.contact.station_points`)."""
+    xi = contact.station_points(n)
     return jax.vmap(lambda t: contact.centreline_point(RA, pA, d, t)[1])(jnp.asarray(xi))
 
 
@@ -61,13 +61,15 @@ def line_load(load, normals, slip, scale, mu):
 def force(el, previous, scale, data: contact.ContactData, length, kinds: tuple, n: int):
     """Nodal forces (12,) (residual side) of the friction (F1) of one element (``el`` an
     :class:`~simsoft_jax.terms.Element` with ``el.pA``) against the obstacles ``kinds``:
-    ``previous`` (n,3) the element's stations at the previous load level (m, world),
+    ``previous`` (n+2,3) the element's stations at the previous load level (m, world),
     ``scale`` () the slip scale ``u_s`` (m), ``length`` the reference length (m), ``n``
-    the stations per element."""
-    xi, w = contact.quadrature(n)
+    the Gauss points per element (the stations' weights: the contact's, end caps
+    included)."""
+    xi = contact.station_points(n)
     _, load, normals, R, x = contact.stations(el.RA, el.pA, el.d, data, kinds, n)
     f = line_load(load, normals, x - previous, scale, data.friction)
     maps = jax.vmap(lambda t: element.velocity_field_map(t, el.d, el.P))(jnp.asarray(xi))
     local = jnp.einsum("nji,nj->ni", R, f)                                  # R^T f
     wrench = jnp.concatenate([local, jnp.zeros_like(local)], axis=1)
-    return -length * jnp.einsum("n,nji,nj->i", jnp.asarray(w), maps, wrench)
+    weights = contact.station_weights(length, data.caps, n)
+    return -jnp.einsum("n,nji,nj->i", weights, maps, wrench)
