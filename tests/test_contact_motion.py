@@ -96,10 +96,11 @@ def test_a_sliding_plate_drags_a_resting_rod_by_friction():
 def test_contact_force_of_a_moving_plane_and_its_gradient_in_the_speed():
     """The rod at rest at z = 0, the plane starting at z = -r and rising at V: at time t
     the rod sinks delta = V t into it everywhere (past the smoothing width eps), so the
-    plane pushes with k (delta - eps/2) per length, L k (V t - eps/2) in all, and the
-    derivative of that in V (through the motion's time law, a model array, evaluated at
-    t as in a time step) is L k t; both from the residual at t to 1e-9, the derivative
-    by forward mode against the closed form and a central difference."""
+    plane pushes with k (delta - eps/2) per length on the rod and on its two end caps (a
+    length r each), (L + 2 r) k (V t - eps/2) in all, and the derivative of that in V
+    (through the motion's time law, a model array, evaluated at t as in a time step) is
+    (L + 2 r) k t; both from the residual at t to 1e-9, the derivative by forward mode
+    against the closed form and a central difference."""
     V, t, k = 0.05, 0.3, 1e4
     model = sj.build_model(sj.Scene.from_dict(
         _scene([0.0, 0.0, 1.0], V, 0.0, k, -R_CONTACT, 1.0)))
@@ -114,9 +115,10 @@ def test_contact_force_of_a_moving_plane_and_its_gradient_in_the_speed():
 
     eps = contact.SMOOTHING * R_CONTACT
     assert V * t > eps
-    assert float(push(V)) == pytest.approx(L_ROD * k * (V * t - 0.5 * eps), rel=1e-9)
+    loaded = L_ROD + 2 * R_CONTACT
+    assert float(push(V)) == pytest.approx(loaded * k * (V * t - 0.5 * eps), rel=1e-9)
     grad = float(jax.jacfwd(push)(jnp.asarray(V)))
-    assert grad == pytest.approx(L_ROD * k * t, rel=1e-9)
+    assert grad == pytest.approx(loaded * k * t, rel=1e-9)
     fd = (float(push(V + 1e-6)) - float(push(V - 1e-6))) / 2e-6
     assert grad == pytest.approx(fd, rel=1e-7)
 

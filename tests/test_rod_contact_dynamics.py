@@ -67,7 +67,7 @@ def test_crossing_rods_collide_and_keep_their_energy(collision):
 def test_crossing_rods_leave_with_the_rigid_elastic_collision_velocities(collision):
     """After the contact the mean vertical velocities are those of an elastic collision of
     rigid bodies of masses rhoA L: ``v_top' = ((m1 - m2) v1 + 2 m2 v2)/(m1 + m2)`` with
-    v1 = -v0, v2 = +v0 (v0/3 up) and ``v_bottom' = -5 v0 / 3`` (to 2 %: the rods' bending
+    v1 = -v0, v2 = +v0 (v0/3 up) and ``v_bottom' = -5 v0 / 3`` (to 0.5 %: the rods' bending
     vibration keeps a little energy)."""
     res = collision
     m1, m2, v1, v2 = RHO_TOP * L, RHO_BOTTOM * L, -V0, V0
@@ -75,7 +75,7 @@ def test_crossing_rods_leave_with_the_rigid_elastic_collision_velocities(collisi
                 "bottom": ((m2 - m1) * v2 + 2 * m1 * v1) / (m1 + m2)}
     for rod, v_after in expected.items():
         world = np.einsum("nij,nj->ni", res.rotations(rod)[-1], res.velocities(rod)[-1][:, :3])
-        assert world[:, 2].mean() == pytest.approx(v_after, rel=2e-2)
+        assert world[:, 2].mean() == pytest.approx(v_after, rel=5e-3)
 
 
 def test_rod_contact_forces_are_equal_and_opposite_at_every_time(collision):
