@@ -343,14 +343,13 @@ def test_contact_catheter(examples):
 def test_catheter_bend(examples):
     """The catheter pushed through the 90 degree bend stays in the vessel and follows it.
     The vessel's centreline distance is written here from the geometry (inlet: |y| for
-    x < 0; bend: | |p - C| - R | in the quadrant; outlet: |x - R| for y > R): every node
-    but the tip, at every saved time, lies within a - r of it (to 2 % of r); the tip
-    within a - r plus its distance from the last contact station (h (1 - xi_4), xi_4 the
-    last of 4 Gauss points: contact is looked for at Gauss points, so a free end may poke
-    that far into a wall it meets at an angle). The catheter is pushed, not stretched:
+    x < 0; bend: | |p - C| - R | in the quadrant; outlet: |x - R| for y > R): every node,
+    the free tip included (its end cap meets the wall), at every saved time, lies within
+    a - r of it (to 2 % of r). The catheter is pushed, not stretched:
     its tip, ending in the outlet, is along the centreline (arc length from the bend's
     start, where it started) within (a - r) times the bend angle of the push (the inner
-    and outer ways round the bend); its penetration at the contact stations stays below
+    and outer ways round the bend); its penetration at the contact stations (Gauss points
+    and nodes) stays below
     5 % of r; the animation is a GIF."""
     s, out = examples["catheter_bend"].result()
     assert s["converged"]
@@ -359,11 +358,8 @@ def test_catheter_bend(examples):
     x, y = p[..., 0], p[..., 1]
     bend = np.abs(np.hypot(x, y - R) - R)
     dist = np.where(x < 0.0, np.abs(y), np.where(y > R, np.abs(x - R), bend))
-    assert dist[:, :-1].max() <= a - r + 0.02 * r
+    assert dist.max() <= a - r + 0.02 * r
     assert dist.max() > 0.5 * (a - r)                 # it does lean on the walls
-    h = s["length_m"] / (p.shape[1] - 1)
-    xi_last = 0.5 * (1.0 + np.polynomial.legendre.leggauss(4)[0][-1])
-    assert dist[:, -1].max() <= a - r + h * (1.0 - xi_last)
     tip = p[-1, -1]
     assert tip[1] > R                                 # in the outlet at the end
     s_tip = R * s["bend_angle_rad"] + (tip[1] - R)    # centreline arc length from the start
