@@ -11,7 +11,10 @@ Model, from the files only:
   ``length``) so that properties and masses sit where the data put them; its
   4x4 stiffness ``[extension, twist, flap, edgewise]`` (K11..K44 with couplings) becomes
   the 6x6 section matrix by :func:`simsoft_jax.sections.beam4_stiffness` (shear-rigid data:
-  GA = 1e4 x EA keeps shear strains negligible). Frames: world = the Nastran frame of the
+  GA = 100 EA keeps shear strains negligible, below 1e-8 here; the tip deflection moves by
+  4e-8 of itself from GA = 1e4 EA, while the static solves take 4x fewer Newton
+  iterations: a stiffer shear puts the residual's round-off floor, ~eps GA, far above the
+  tolerance). Frames: world = the Nastran frame of the
   data (X aft along the chord, Y spanwise, Z up); the rod's local x is +Y, local y = -X
   (towards the leading edge), local z = +Z, so flap bending is ``kappa_y`` and a positive
   rotation about local x lifts the leading edge (nose up, the data's positive twist).
@@ -55,6 +58,7 @@ G = 9.80665
 CHORD = 0.1
 AXIS = 0.44          # reference axis, fraction of the chord from the leading edge
 BEHIND_TE = {0: 0.04, 1: 0.08}
+SHEAR = 1e2          # GA / EA of the shear-rigid data (see the module docstring)
 HEADER = "scene,rod,node,offset_x,offset_y,offset_z,quantity,value,std,reference\n"
 
 
@@ -77,7 +81,7 @@ def wing_scene(skin: int, test: str, mass: float) -> dict:
                        [k["K12"], k["K22"], k["K23"], k["K24"]],
                        [k["K13"], k["K23"], k["K33"], k["K34"]],
                        [k["K14"], k["K24"], k["K34"], k["K44"]]])
-        K = sections.beam4_stiffness(K4, shear=(1e4 * k["K11"], 1e4 * k["K11"]))
+        K = sections.beam4_stiffness(K4, shear=(SHEAR * k["K11"], SHEAR * k["K11"]))
         segments.append({"elements": 1, "length": float(length),
                          "stiffness": {"matrix": K.tolist()},
                          "inertia": {"rhoA": 1e-9, "rhoJ": 0.0, "rhoIy": 0.0, "rhoIz": 0.0}})
