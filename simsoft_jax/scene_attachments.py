@@ -1,5 +1,5 @@
-"""Scene parsing of section stiffness tables (diagonal or full 6x6 matrix), point masses
-(``[[masses]]``) and load offsets: plain Python + NumPy, errors naming the key path
+"""Scene parsing of section stiffness and inertia tables (diagonal or full 6x6 matrix),
+point masses (``[[masses]]``) and load offsets: plain Python + NumPy, errors naming the key path
 (:mod:`simsoft_jax.scene` calls these; contract in ``docs/scene-format.md``)."""
 from __future__ import annotations
 
@@ -9,9 +9,22 @@ import numpy as np
 
 from ._validate import (check_keys, fail, index, join, matrix, number, positive, prefixed,
                         readonly, table, vector)
-from .sections import custom_stiffness, stiffness_matrix
+from .sections import custom_inertia, custom_stiffness, inertia_matrix, stiffness_matrix
 
 STIFFNESS_KEYS = ("EA", "GAy", "GAz", "GJ", "EIy", "EIz")
+INERTIA_KEYS = ("rhoA", "rhoJ", "rhoIy", "rhoIz")
+
+
+def _matrix_table(k: dict, path: str, build) -> np.ndarray:
+    """``{ matrix = [[..6..] x 6] }`` (the key alone in its table) -> ``build(rows)``,
+    its errors naming ``path.matrix``."""
+    check_keys(k, path, ("matrix",), required=("matrix",))
+    mpath = join(path, "matrix")
+    rows = matrix(k["matrix"], mpath, 6)
+    if len(rows) != 6:
+        fail(mpath, f"must have 6 rows of 6 numbers, got {len(rows)} rows")
+    with prefixed(path, ("matrix",)):
+        return build(rows)
 
 
 def parse_stiffness(value: Any, path: str) -> np.ndarray:
@@ -21,17 +34,25 @@ def parse_stiffness(value: Any, path: str) -> np.ndarray:
     :func:`~simsoft_jax.sections.stiffness_matrix`)."""
     k = table(value, path)
     if "matrix" in k:
-        check_keys(k, path, ("matrix",), required=("matrix",))
-        mpath = join(path, "matrix")
-        rows = matrix(k["matrix"], mpath, 6)
-        if len(rows) != 6:
-            fail(mpath, f"must have 6 rows of 6 numbers, got {len(rows)} rows")
-        with prefixed(path, ("matrix",)):
-            return stiffness_matrix(rows)
+        return _matrix_table(k, path, stiffness_matrix)
     check_keys(k, path, STIFFNESS_KEYS + ("matrix",), required=STIFFNESS_KEYS)
     args = {n: number(k[n], join(path, n)) for n in STIFFNESS_KEYS}
     with prefixed(path, STIFFNESS_KEYS):
         return custom_stiffness(**args)
+
+
+def parse_section_inertia(value: Any, path: str) -> np.ndarray:
+    """``inertia = {rhoA, rhoJ, rhoIy, rhoIz}`` -> the diagonal (6,), or
+    ``inertia = { matrix = [[..6..] x 6] }`` -> the full section inertia (6,6) per unit
+    length about the reference axis, with an offset centre of mass
+    (:func:`~simsoft_jax.sections.inertia_matrix`)."""
+    m = table(value, path)
+    if "matrix" in m:
+        return _matrix_table(m, path, inertia_matrix)
+    check_keys(m, path, INERTIA_KEYS + ("matrix",), required=INERTIA_KEYS)
+    args = {n: number(m[n], join(path, n)) for n in INERTIA_KEYS}
+    with prefixed(path, INERTIA_KEYS):
+        return custom_inertia(**args)
 
 
 MASS_KEYS = ("rod", "node", "s", "mass", "offset", "inertia")
