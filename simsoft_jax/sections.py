@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import lie
 from .materials import Material, check_number
 
 def _circle_shear(nu: float) -> float:
@@ -259,6 +258,8 @@ def offset_inertia(rhoA: float, centre=(0.0, 0.0), rotary=(0.0, 0.0, 0.0)) -> np
     its diagonal ``[J_x, J_y, J_z]`` or the full symmetric (3,3);
     ``M = [[rhoA I, -rhoA C], [rhoA C, J_c - rhoA C C]]``, ``C = skew((0, cy, cz))``
     (:func:`simsoft_jax.lie.spatial_inertia`)."""
+    from . import lie    # JAX, imported here: scene validation (this module) stays NumPy
+
     rho_a = check_number("rhoA", rhoA)
     centre = np.asarray(centre, dtype=float)
     if centre.shape != (2,):
