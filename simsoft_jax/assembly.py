@@ -11,9 +11,10 @@ follower distributed loads by ``jax.jacfwd`` in 6 directions) and ``"autodiff"``
 :mod:`simsoft_jax.terms.autodiff`); both give the same exact tangent. Point loads inside
 elements, the weight's moment at an offset centre of mass, tendons and pressure chambers
 take ``jax.jacfwd`` on both paths (:func:`jacfwd_terms_and_tangent`). They are assembled
-into a block-tridiagonal matrix of 6x6 blocks ``(diag (N,6,6), upper (N-1,6,6), lower (N-1,6,6))``,
-``upper[i] = K[i, i+1]``, ``lower[i] = K[i+1, i]``. Held dofs get an identity row/column and
-a zero residual, so the structure never changes. Linear solves: :mod:`simsoft_jax.linalg`.
+into a block-tridiagonal matrix of 6x6 blocks
+``(diag (N,6,6), upper (N-1,6,6), lower (N-1,6,6))``, ``upper[i] = K[i, i+1]``,
+``lower[i] = K[i+1, i]``. Held dofs get an identity row/column and a zero residual, so the
+structure never changes. Linear solves: :mod:`simsoft_jax.linalg`.
 """
 from __future__ import annotations
 

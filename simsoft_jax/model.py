@@ -64,6 +64,7 @@ class Structure:
     coupled_stiffness: bool = False   # Model.stiffness is (E,6,6) (couplings), else (E,6)
     coupled_inertia: bool = False     # Model.inertia is (E,6,6) (off-diagonal), else (E,6)
     inertia_offset: bool = False      # some section's centre of mass is off its axis
+                                      # (traces terms.offset_gravity under gravity)
     mass_nodes: tuple = ()        # node of each attached mass ([[masses]])
     offset_load_nodes: tuple = () # node of each world-frame force at an offset point
     inertia_kind: str = "consistent"   # "consistent" | "lumped" element inertia
