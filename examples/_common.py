@@ -85,8 +85,9 @@ def straight_element_mass(length: float, inertia) -> np.ndarray:
     """Frozen consistent mass (12, 12) of a straight element (spec section 3.5, I2):
     ``M_AA = L/3 M - L/24 (A^T M + M A) + L/120 A^T M A``, ``M_AB = L/6 M + L/24 (M A -
     A^T M) - L/120 A^T M A``, ``M_BB = L/3 M + L/24 (A^T M + M A) + L/120 A^T M A`` with
-    ``M = diag(inertia)`` and ``A = ad([L e1; 0])``."""
-    M = np.diag(inertia)
+    ``M = diag(inertia)`` (or ``inertia`` itself, a (6,6) section inertia) and
+    ``A = ad([L e1; 0])``."""
+    M = np.asarray(inertia) if np.ndim(inertia) == 2 else np.diag(inertia)
     A = np.zeros((6, 6))
     A[1, 5], A[2, 4] = -length, length          # ad_h = [[w^, U^], [0, w^]], U = L e1
     AtM, MA, AtMA = A.T @ M, M @ A, A.T @ M @ A

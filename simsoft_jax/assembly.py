@@ -9,12 +9,12 @@ distributed loads and nodal loads in closed form, :func:`element_force_and_tange
 follower distributed loads by ``jax.jacfwd`` in 6 directions) and ``"autodiff"``
 (``jax.jacfwd`` of the sum of the terms in the 12 frame perturbations,
 :mod:`simsoft_jax.terms.autodiff`); both give the same exact tangent. Point loads inside
-elements, tendons and pressure chambers take ``jax.jacfwd`` on both paths
-(:func:`jacfwd_terms_and_tangent`). They are assembled
-into a
-block-tridiagonal matrix of 6x6 blocks ``(diag (N,6,6), upper (N-1,6,6), lower (N-1,6,6))``,
-``upper[i] = K[i, i+1]``, ``lower[i] = K[i+1, i]``. Held dofs get an identity row/column and
-a zero residual, so the structure never changes. Linear solves: :mod:`simsoft_jax.linalg`.
+elements, the weight's moment at an offset centre of mass, tendons and pressure chambers
+take ``jax.jacfwd`` on both paths (:func:`jacfwd_terms_and_tangent`). They are assembled
+into a block-tridiagonal matrix of 6x6 blocks
+``(diag (N,6,6), upper (N-1,6,6), lower (N-1,6,6))``, ``upper[i] = K[i, i+1]``,
+``lower[i] = K[i+1, i]``. Held dofs get an identity row/column and a zero residual, so the
+structure never changes. Linear solves: :mod:`simsoft_jax.linalg`.
 """
 from __future__ import annotations
 
@@ -23,11 +23,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import element, lie
+from .inertia import line_density
 from .model import Model
 from .terms import ElementData, element_state
 from .terms import autodiff as term_tangents
 from .terms import masses as mass_term
-from .terms import contact, offset_loads, point_in_element, static_friction
+from .terms import contact, offset_gravity, offset_loads, point_in_element, static_friction
 
 TANGENTS = ("closed_form", "autodiff")
 
@@ -117,13 +118,15 @@ def element_term_and_tangent(model: Model, R, p, term):
 
 def jacfwd_terms_and_tangent(model: Model, lam, R, p):
     """Nodal forces (E,12) and tangents (E,12,12) of the point loads inside elements
-    (:mod:`simsoft_jax.terms.point_in_element`; spec S38) and of the tendons and
+    (:mod:`simsoft_jax.terms.point_in_element`; spec S38), of the weight's moment at an
+    offset centre of mass (:mod:`simsoft_jax.terms.offset_gravity`) and of the tendons and
     pressure chambers (:mod:`simsoft_jax.terms.tendons`, :mod:`~simsoft_jax.terms.chambers`),
     by :func:`element_term_and_tangent`; None when the scene has none."""
     s = model.structure
     point = s.has_point_dead or s.has_point_follower
+    offset = s.has_gravity and s.inertia_offset
     actuators = term_tangents.actuator_residual(s, lam)
-    if not point and actuators is None:
+    if not (point or offset) and actuators is None:
         return None
 
     def term(el, data):
@@ -131,6 +134,8 @@ def jacfwd_terms_and_tangent(model: Model, lam, R, p):
         if point:
             r = r + point_in_element.force(el, data, lam, s.has_point_dead,
                                            s.has_point_follower)
+        if offset:
+            r = r + offset_gravity.force(el, data, lam)
         if actuators is not None:
             r = r + actuators(el, data)
         return r
@@ -261,7 +266,8 @@ def _nodal_load(model: Model, lam):
 def _element_args(model: Model, R, p):
     a = jnp.asarray(model.structure.element_nodes)
     d = jax.vmap(element.relative_twist)(R[a], p[a], R[a + 1], p[a + 1])
-    return (R[a], d, model.d0, model.length, model.stiffness, model.inertia[:, 0],
+    return (R[a], d, model.d0, model.length, model.stiffness,
+            jax.vmap(line_density)(model.inertia),
             model.distributed_world, model.distributed_local)
 
 

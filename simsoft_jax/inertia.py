@@ -16,6 +16,10 @@ conserves energy and the momentum map of the semi-discrete system (the frozen-fi
 ``-int N0^T ad_u^T M u`` of spec I2 lets momentum drift by O(strain) on soft rods). Both
 are exact for rigid motion of a straight element; neither depends on the configuration,
 so inertia adds ``M beta'`` and ``C_gyr gamma'`` to the iteration matrix only.
+
+The section inertia ``M`` is the diagonal (6,) ``[rhoA, rhoA, rhoA, rhoJ, rhoIy, rhoIz]`` or
+the full (6,6) spatial inertia per length about the rod's axis with an offset centre of
+mass (:func:`simsoft_jax.sections.inertia_matrix`); all of the above holds for either.
 """
 from __future__ import annotations
 
@@ -25,7 +29,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import element
+from . import element, lie
 
 _GAUSS4_X, _GAUSS4_W = np.polynomial.legendre.leggauss(4)
 RULES = {
@@ -42,9 +46,31 @@ def field_maps(d0, kind: str):
     return jax.vmap(lambda x: element.velocity_field_map(x, d0, P))(jnp.asarray(points))
 
 
+def line_density(inertia):
+    """``rhoA`` (kg/m) of a section inertia: the diagonal (6,) or the matrix (6,6)."""
+    return inertia[0, 0] if inertia.ndim == 2 else inertia[0]
+
+
+def centre_of_mass(inertia):
+    """Centre of mass ``c`` (3,) (m, section frame) of a section inertia (6,6)
+    ``[[rhoA I, -rhoA C], [rhoA C, ...]]``, ``C = skew(c)``: ``vee(M[3:6, 0:3]) / rhoA``
+    (:func:`simsoft_jax.sections.inertia_matrix`)."""
+    return lie.vee_so3(inertia[3:, :3]) / inertia[0, 0]
+
+
+def section_momentum(inertia, u):
+    """``M u`` (..., 6) of section velocities ``u`` (..., 6) for the diagonal (6,) or the
+    full (6,6) section inertia (which one is static: the array's shape)."""
+    return u @ inertia.T if inertia.ndim == 2 else inertia * u
+
+
 def mass_matrix(maps, length, inertia, kind: str):
-    """Constant element mass matrix (12,12) from the field maps (spec I2 / I4)."""
+    """Constant element mass matrix (12,12) ``sum_g w_g L N0_g^T M N0_g`` from the field
+    maps (spec I2 / I4); ``inertia`` the diagonal (6,) or the full (6,6) section inertia
+    (kg/m, kg, kg m by block; a diagonal traces exactly the diagonal product)."""
     weights = jnp.asarray(RULES[kind][1]) * length
+    if inertia.ndim == 2:
+        return jnp.einsum("g,gai,ab,gbj->ij", weights, maps, inertia, maps)
     return jnp.einsum("g,gai,a,gaj->ij", weights, maps, inertia, maps)
 
 
@@ -66,7 +92,7 @@ def gyroscopic_force(maps, length, inertia, velocities, kind: str, mass=None):
         return -jnp.concatenate([lin, ang], axis=1).reshape(12)
     weights = jnp.asarray(RULES[kind][1]) * length
     u = maps @ velocities                      # (G, 6) section velocities
-    mu = inertia * u
+    mu = section_momentum(inertia, u)
     g = -jnp.concatenate([jnp.cross(mu[:, :3], u[:, 3:]),
                           jnp.cross(mu[:, :3], u[:, :3]) + jnp.cross(mu[:, 3:], u[:, 3:])],
                          axis=1)

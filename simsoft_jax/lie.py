@@ -137,6 +137,18 @@ def vee_so3(W):
     return jnp.array([W[2, 1], W[0, 2], W[1, 0]])
 
 
+def spatial_inertia(mass, offset, inertia):
+    """Spatial inertia (6,6) about a body-fixed point, ordered ``[linear; angular]``:
+    ``[[m I, -m C], [m C, J_c - m C C]]`` with ``C = skew(c)`` (e.g. Murray, Li & Sastry
+    1994, ch. 4), for a mass ``m`` (kg, or kg/m per length) with its centre at ``c`` (3,)
+    (m, body frame) and the inertia ``J_c`` (3,3) about that centre (kg m^2, or kg m per
+    length); kinetic energy ``V^T M V / 2`` of the body twist ``V = [v; w]``."""
+    offset = jnp.asarray(offset)
+    C = skew(offset)
+    eye = jnp.eye(3, dtype=C.dtype)
+    return jnp.block([[mass * eye, -mass * C], [mass * C, inertia - mass * C @ C]])
+
+
 def hat_se3(xi):
     """4x4 matrix of the twist ``xi = [U; Omega]`` (seed eq. 114, spec S2)."""
     xi = jnp.asarray(xi)

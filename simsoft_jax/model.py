@@ -62,6 +62,9 @@ class Structure:
     has_viscosity: bool = False   # Kelvin-Voigt terms traced in dynamics
     has_mass_damping: bool = False  # mass-proportional damping traced in dynamics
     coupled_stiffness: bool = False   # Model.stiffness is (E,6,6) (couplings), else (E,6)
+    coupled_inertia: bool = False     # Model.inertia is (E,6,6) (off-diagonal), else (E,6)
+    inertia_offset: bool = False      # some section's centre of mass is off its axis
+                                      # (traces terms.offset_gravity under gravity)
     mass_nodes: tuple = ()        # node of each attached mass ([[masses]])
     offset_load_nodes: tuple = () # node of each world-frame force at an offset point
     inertia_kind: str = "consistent"   # "consistent" | "lumped" element inertia
@@ -109,7 +112,10 @@ class Model:
     length (E,): reference element lengths ``|d0_U|`` (S35). stiffness, inertia,
     viscosity (E,6): sectional diagonals ``K``, ``M``, ``Upsilon`` (S28, S29); stiffness
     is (E,6,6), full symmetric matrices, when the scene has couplings
-    (``structure.coupled_stiffness``).
+    (``structure.coupled_stiffness``); inertia is (E,6,6), spatial inertias per length
+    about the axis with an offset centre of mass
+    (:func:`~simsoft_jax.sections.inertia_matrix`), when some section has one
+    (``structure.coupled_inertia``).
     mass_damping (E,): mass-proportional damping constant of each element (1/s,
     :mod:`~simsoft_jax.terms.mass_damping`).
     nodal_dead (N,6): world-frame force and moment per node (dead loads).
@@ -220,7 +226,8 @@ jax.tree_util.register_dataclass(
 
 
 def _rod_constants(rod):
-    """Stiffness, inertia and viscosity diagonals (6,) of a RodSpec or SegmentSpec."""
+    """Stiffness and inertia (6,) diagonals or (6,6) matrices and the viscosity diagonal
+    (6,) of a RodSpec or SegmentSpec."""
     K = rod.stiffness if rod.stiffness is not None else stiffness_diagonal(
         rod.section, rod.material, rod.shear_coefficients)
     M = rod.inertia if rod.inertia is not None else inertia_diagonal(rod.section, rod.material)
@@ -247,11 +254,11 @@ def _split_offset_loads(loads):
     return plain, at_offset
 
 
-def _stiffness_table(pieces):
-    """Per-element stiffness from ``[(K, elements), ...]`` (K (6,) or (6,6)): (E,6) of the
-    diagonals when no piece has couplings (a 6x6 matrix that is diagonal gives exactly
-    its diagonal, so the uncoupled path is used), else (E,6,6) for every element.
-    Returns the table and whether it is coupled (the static flag)."""
+def _section_table(pieces):
+    """Per-element stiffness or inertia from ``[(K, elements), ...]`` (K (6,) or (6,6)):
+    (E,6) of the diagonals when no piece has couplings (a 6x6 matrix that is diagonal
+    gives exactly its diagonal, so the uncoupled path is used), else (E,6,6) for every
+    element. Returns the table and whether it is coupled (the static flag)."""
     def diagonal_of(K):
         return np.diag(K) if K.ndim == 2 and not np.any(K - np.diag(np.diag(K))) else K
 
@@ -384,7 +391,7 @@ def build_model(scene) -> Model:
         for piece in (rod.segments or (rod,)):
             Kr, Mr, Vr = _rod_constants(piece)
             K.append((Kr, piece.elements))
-            M.append(np.tile(Mr, (piece.elements, 1)))
+            M.append((Mr, piece.elements))
             V.append(np.tile(Vr, (piece.elements, 1)))
             material = getattr(piece, "material", None)
             C.append(np.full(piece.elements, getattr(material, "mass_damping", 0.0)))
@@ -437,7 +444,8 @@ def build_model(scene) -> Model:
 
     d0 = np.concatenate(d0)
     length = np.linalg.norm(d0[:, :3], axis=1)
-    K, coupled = _stiffness_table(K)
+    K, coupled = _section_table(K)
+    M, coupled_inertia = _section_table(M)
     gravity = np.zeros(3) if scene.gravity is None else np.asarray(scene.gravity, float)
     V = np.concatenate(V)
     times, disp, rot, slide, drive_nodes, sliding = _drive_tables(scene, by_name)
@@ -468,6 +476,8 @@ def build_model(scene) -> Model:
         has_viscosity=bool(np.any(V != 0.0)),
         has_mass_damping=bool(np.any(np.concatenate(C) != 0.0)),
         coupled_stiffness=coupled,
+        coupled_inertia=coupled_inertia,
+        inertia_offset=coupled_inertia and bool(np.any(M[:, 3:, :3])),
         inertia_kind=getattr(scene.solver, "inertia", "consistent"),
         drive_nodes=drive_nodes, slide_drives=sliding, bodies=joints.bodies,
         coupling_nodes=joints.coupling_nodes,
@@ -486,7 +496,7 @@ def build_model(scene) -> Model:
     )
     arrays = dict(
         R0=R0, p0=p0, d0=d0, length=length, stiffness=K,
-        inertia=np.concatenate(M), viscosity=V, mass_damping=np.concatenate(C),
+        inertia=M, viscosity=V, mass_damping=np.concatenate(C),
         nodal_dead=nodal_dead,
         nodal_follower=nodal_follower, distributed_world=dist_world,
         distributed_local=dist_local, element_point_dead=point_dead,

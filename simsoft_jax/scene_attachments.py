@@ -1,5 +1,5 @@
-"""Scene parsing of section stiffness tables (diagonal or full 6x6 matrix), point masses
-(``[[masses]]``) and load offsets: plain Python + NumPy, errors naming the key path
+"""Scene parsing of section stiffness and inertia tables (diagonal or full 6x6 matrix),
+point masses (``[[masses]]``) and load offsets: plain Python + NumPy, errors naming the key path
 (:mod:`simsoft_jax.scene` calls these; contract in ``docs/scene-format.md``)."""
 from __future__ import annotations
 
@@ -9,9 +9,29 @@ import numpy as np
 
 from ._validate import (check_keys, fail, index, join, matrix, number, positive, prefixed,
                         readonly, table, vector)
-from .sections import custom_stiffness, stiffness_matrix
+from .sections import custom_inertia, custom_stiffness, inertia_matrix, stiffness_matrix
 
 STIFFNESS_KEYS = ("EA", "GAy", "GAz", "GJ", "EIy", "EIz")
+INERTIA_KEYS = ("rhoA", "rhoJ", "rhoIy", "rhoIz")
+
+
+def _section_constants(value: Any, path: str, keys: tuple, diagonal, full) -> np.ndarray:
+    """A section table: its named diagonal ``keys`` -> ``diagonal(**values)``, or
+    ``{ matrix = [[..6..] x 6] }`` (the key alone in its table) -> ``full(rows)``; errors
+    name ``path.key`` / ``path.matrix``."""
+    k = table(value, path)
+    if "matrix" not in k:
+        check_keys(k, path, keys + ("matrix",), required=keys)
+        args = {n: number(k[n], join(path, n)) for n in keys}
+        with prefixed(path, keys):
+            return diagonal(**args)
+    check_keys(k, path, ("matrix",), required=("matrix",))
+    mpath = join(path, "matrix")
+    rows = matrix(k["matrix"], mpath, 6)
+    if len(rows) != 6:
+        fail(mpath, f"must have 6 rows of 6 numbers, got {len(rows)} rows")
+    with prefixed(path, ("matrix",)):
+        return full(rows)
 
 
 def parse_stiffness(value: Any, path: str) -> np.ndarray:
@@ -19,19 +39,15 @@ def parse_stiffness(value: Any, path: str) -> np.ndarray:
     ``stiffness = { matrix = [[..6..] x 6] }`` -> the full symmetric positive definite
     matrix (6,6) (strains ``eps_x, gamma_y, gamma_z, kappa_x, kappa_y, kappa_z``;
     :func:`~simsoft_jax.sections.stiffness_matrix`)."""
-    k = table(value, path)
-    if "matrix" in k:
-        check_keys(k, path, ("matrix",), required=("matrix",))
-        mpath = join(path, "matrix")
-        rows = matrix(k["matrix"], mpath, 6)
-        if len(rows) != 6:
-            fail(mpath, f"must have 6 rows of 6 numbers, got {len(rows)} rows")
-        with prefixed(path, ("matrix",)):
-            return stiffness_matrix(rows)
-    check_keys(k, path, STIFFNESS_KEYS + ("matrix",), required=STIFFNESS_KEYS)
-    args = {n: number(k[n], join(path, n)) for n in STIFFNESS_KEYS}
-    with prefixed(path, STIFFNESS_KEYS):
-        return custom_stiffness(**args)
+    return _section_constants(value, path, STIFFNESS_KEYS, custom_stiffness, stiffness_matrix)
+
+
+def parse_section_inertia(value: Any, path: str) -> np.ndarray:
+    """``inertia = {rhoA, rhoJ, rhoIy, rhoIz}`` -> the diagonal (6,), or
+    ``inertia = { matrix = [[..6..] x 6] }`` -> the full section inertia (6,6) per unit
+    length about the reference axis, with an offset centre of mass
+    (:func:`~simsoft_jax.sections.inertia_matrix`)."""
+    return _section_constants(value, path, INERTIA_KEYS, custom_inertia, inertia_matrix)
 
 
 MASS_KEYS = ("rod", "node", "s", "mass", "offset", "inertia")

@@ -13,11 +13,11 @@ from ._validate import (check_keys, choice, fail, index, integer, join, number, 
                         positive, prefixed, readonly, require, rodrigues, rotation_vector,
                         string, table, vector)
 from .materials import BUILTIN_MATERIALS, Material, get_material
-from .scene_attachments import parse_stiffness
+from .scene_attachments import parse_section_inertia, parse_stiffness
 from .scene_initial import parse_initial
 from .scene_limits import MAX_ELEMENTS, check_elements
 from .scene_specs import GeometrySpec, RodSpec, SegmentSpec, node_fractions
-from .sections import Section, circle, custom_inertia, rectangle, semicircle, tube
+from .sections import Section, circle, rectangle, semicircle, tube
 
 MATERIAL_KEYS = ("name", "E", "G", "nu", "density", "viscosity", "mass_damping")
 ROD_KEYS = ("name", "material", "section", "shear_coefficients", "stiffness", "inertia",
@@ -28,7 +28,6 @@ SECTIONS = {"circle": (circle, ("diameter",)),
              "tube": (tube, ("outer_diameter", "inner_diameter")),
              "rectangle": (rectangle, ("width", "height")),
              "semicircle": (semicircle, ("radius",))}
-INERTIA_KEYS = ("rhoA", "rhoJ", "rhoIy", "rhoIz")
 GEOMETRY_KEYS = {"straight": ("length",), "arc": ("radius", "angle_deg"),
                   "helix": ("radius", "pitch", "turns"), "polyline": ("points",)}
 
@@ -77,12 +76,7 @@ def _parse_properties(r: dict, path: str, materials: dict[str, Material],
     if "stiffness" in r:
         stiffness = parse_stiffness(r["stiffness"], join(path, "stiffness"))
     if "inertia" in r:
-        ipath = join(path, "inertia")
-        m = table(r["inertia"], ipath)
-        check_keys(m, ipath, INERTIA_KEYS, required=INERTIA_KEYS)
-        args = {n: number(m[n], join(ipath, n)) for n in INERTIA_KEYS}
-        with prefixed(ipath, INERTIA_KEYS):
-            inertia = custom_inertia(**args)
+        inertia = parse_section_inertia(r["inertia"], join(path, "inertia"))
 
     section = None
     if "section" in r:

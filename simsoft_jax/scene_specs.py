@@ -57,8 +57,8 @@ class RodSpec(SpecBase):
     material: Material | None         # None only when there is no section (both overrides)
     section: Section | None
     shear_coefficients: tuple[float, float] | None
-    stiffness: np.ndarray | None      # (6,) EA, GAy, GAz, GJ, EIy, EIz override
-    inertia: np.ndarray | None        # (6,) rhoA x3, rhoJ, rhoIy, rhoIz override
+    stiffness: np.ndarray | None      # (6,) EA, GAy, GAz, GJ, EIy, EIz override, or (6,6)
+    inertia: np.ndarray | None        # (6,) rhoA x3, rhoJ, rhoIy, rhoIz override, or (6,6)
     elements: int
     geometry: GeometrySpec
     base_position: np.ndarray         # (3,)

@@ -1,4 +1,5 @@
-"""Cross-section properties and the sectional stiffness / inertia / viscosity diagonals (SI units).
+"""Cross-section properties and the sectional stiffness / inertia / viscosity diagonals (SI units),
+and full 6x6 sections with couplings (stiffness) or an offset centre of mass (inertia).
 
 Conventions (spec §0, ``scene-format.md``): local x is the rod axis, local y and z are the
 principal axes of the section and the rod's reference line is the section's centroid.
@@ -190,6 +191,85 @@ def custom_inertia(rhoA: float, rhoJ: float, rhoIy: float, rhoIz: float) -> np.n
     rotary = [check_number(key, value, ">= 0", lambda x: x >= 0)
               for key, value in (("rhoJ", rhoJ), ("rhoIy", rhoIy), ("rhoIz", rhoIz))]
     return np.array([rho_a, rho_a, rho_a, *rotary])
+
+
+def inertia_matrix(matrix, rtol: float = 1e-9) -> np.ndarray:
+    """Validated full section inertia (6,6) per unit length with an offset centre of mass.
+
+    Rows and columns follow the section velocity ``[v; w]`` (linear, angular; section
+    frame), about the rod's reference axis: ``M = [[rhoA I, -rhoA C], [rhoA C, J_c -
+    rhoA C C]]`` (:func:`simsoft_jax.lie.spatial_inertia`), ``C = skew(c)``, units kg/m
+    (linear block), kg (couplings) and kg m (rotary block); kinetic energy per length
+    ``u^T M u / 2``. Checked, each failure one ``ValueError`` naming ``matrix`` (entries
+    compared to ``rtol`` times the largest entry): 6x6 and finite; symmetric (the mean of
+    ``M`` and ``M^T`` is kept); the translational block ``rhoA I`` with ``rhoA > 0``
+    (equal diagonal, zero off-diagonal: every part of a section moves with it); the
+    coupling block ``M[3:6, 0:3] = rhoA skew(c)`` skew-symmetric with the centre of mass
+    ``c = (0, cy, cz)`` in the section plane; the rotary inertia about the centre of mass
+    ``J_c = M[3:6, 3:6] + rhoA C C`` positive semi-definite (a rotary inertia may be 0, as
+    in the diagonal form; ``M`` is then positive semi-definite, its Schur complement on the
+    translational block being ``J_c``). The result has exactly that form (the checked
+    blocks are set to it), so a diagonal input stays exactly diagonal.
+    """
+    M = np.array(matrix, dtype=float)
+    if M.shape != (6, 6):
+        raise ValueError(f"matrix: must be 6x6, got shape {M.shape}")
+    if not np.all(np.isfinite(M)):
+        raise ValueError("matrix: entries must be finite")
+    tol = rtol * np.abs(M).max()
+    if np.abs(M - M.T).max() > tol:
+        i, j = np.unravel_index(np.argmax(np.abs(M - M.T)), M.shape)
+        raise ValueError(f"matrix: must be symmetric; entry [{i}][{j}] = {M[i, j]:g} but "
+                         f"[{j}][{i}] = {M[j, i]:g}")
+    M = 0.5 * (M + M.T)
+    rho_a = M[0, 0]
+    if not rho_a > 0.0:
+        raise ValueError(f"matrix: the line density [0][0] = rhoA must be > 0, got {rho_a:g}")
+    linear = np.abs(M[:3, :3] - rho_a * np.eye(3))
+    if linear.max() > tol:
+        i, j = np.unravel_index(np.argmax(linear), (3, 3))
+        raise ValueError(f"matrix: the translational block [0:3][0:3] must be rhoA I (equal "
+                         f"diagonal, zero off-diagonal); entry [{i}][{j}] = {M[i, j]:g}, "
+                         f"rhoA = [0][0] = {rho_a:g}")
+    B = M[3:, :3]
+    skew_part = 0.5 * (B - B.T)
+    skew_part[1, 2] = skew_part[2, 1] = 0.0          # no centre-of-mass offset along x
+    off = np.abs(B - skew_part)
+    if off.max() > tol:
+        i, j = np.unravel_index(np.argmax(off), (3, 3))
+        raise ValueError(f"matrix: the coupling block [3:6][0:3] must be rhoA skew(c) with "
+                         f"the centre of mass c = (0, cy, cz) in the section plane; entry "
+                         f"[{i + 3}][{j}] = {B[i, j]:g}")
+    M[:3, :3] = rho_a * np.eye(3)
+    M[3:, :3], M[:3, 3:] = skew_part, skew_part.T
+    rotary = M[3:, 3:] + skew_part @ skew_part / rho_a
+    low = float(np.linalg.eigvalsh(rotary).min())
+    if low < -tol:
+        raise ValueError(f"matrix: the rotary inertia about the centre of mass, "
+                         f"M[3:6][3:6] + rhoA C C, must be positive semi-definite; smallest "
+                         f"eigenvalue {low:.4g}")
+    return M
+
+
+def offset_inertia(rhoA: float, centre=(0.0, 0.0), rotary=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """(6,6) section inertia about the reference axis (:func:`inertia_matrix`) from the
+    line density ``rhoA`` (kg/m), the centre of mass ``centre = (cy, cz)`` (m, section
+    frame) and the rotary inertia per length about the centre of mass ``rotary`` (kg m):
+    its diagonal ``[J_x, J_y, J_z]`` or the full symmetric (3,3);
+    ``M = [[rhoA I, -rhoA C], [rhoA C, J_c - rhoA C C]]``, ``C = skew((0, cy, cz))``
+    (:func:`simsoft_jax.lie.spatial_inertia`)."""
+    from . import lie    # JAX, imported here: scene validation (this module) stays NumPy
+
+    rho_a = check_number("rhoA", rhoA)
+    centre = np.asarray(centre, dtype=float)
+    if centre.shape != (2,):
+        raise ValueError(f"centre: must be (cy, cz), got shape {centre.shape}")
+    J = np.asarray(rotary, dtype=float)
+    J = np.diag(J) if J.shape == (3,) else J
+    if J.shape != (3, 3):
+        raise ValueError(f"rotary: must be 3 numbers or 3x3, got shape {J.shape}")
+    c = np.concatenate([[0.0], centre])
+    return inertia_matrix(np.asarray(lie.spatial_inertia(rho_a, c, J)))
 
 
 STRAIN_NAMES = ("eps_x", "gamma_y", "gamma_z", "kappa_x", "kappa_y", "kappa_z")

@@ -22,6 +22,7 @@ import numpy as np
 from . import lie, mechanisms, rod_pairs, tendon_control
 from ._xla import jit
 from .assembly import check_tangent, residual, residual_and_tangent
+from .inertia import centre_of_mass, line_density
 from .linalg import (block_solve, factorize_coupled, implicit_solve, implicit_solve_coupled,
                      solve_coupled)
 from .loads import full_loads
@@ -155,7 +156,12 @@ def load_scale(model: Model):
                  + jnp.sum((point[:, 3:] / model.char_length) ** 2))
     q = jnp.zeros_like(model.distributed_world)
     if s.has_gravity:
-        q = q + model.inertia[:, :1] * model.gravity
+        rho_a = jax.vmap(line_density)(model.inertia)
+        q = q + rho_a[:, None] * model.gravity
+        if s.inertia_offset:   # the weight's moment about the axis (offset centre of mass)
+            arm = jnp.linalg.norm(jax.vmap(centre_of_mass)(model.inertia), axis=1)
+            total = total + jnp.sum((model.length * rho_a * arm / model.char_length) ** 2
+                                    * jnp.sum(model.gravity ** 2))
     if s.has_distributed_world:
         q = q + model.distributed_world
     if s.has_distributed_local:

@@ -87,6 +87,33 @@ def _release_compiled_programs(request):
         _release()
 
 
+# ----------------------------------------------------------------------------- tangent paths
+def iteration_matrices(model, R, p, seed=4):
+    """The dynamic residual (N,6) and dense iteration matrix of ``model`` (loads at their
+    time already) at the frames ``R, p``, random nodal velocities, accelerations and step
+    increments (seeded), rho_inf = 0.8, h = 0.01, by both element-block paths:
+    ``[(r, S) closed_form, (r, S) autodiff]`` (NumPy)."""
+    import jax
+    import jax.numpy as jnp
+
+    from simsoft_jax import linalg
+    from simsoft_jax.dynamics import element_inertia
+    from simsoft_jax.dynamics.residual import residual_and_iteration_matrix
+    from simsoft_jax.dynamics.scheme import iteration_factors
+
+    rng = np.random.default_rng(seed)
+    v, vd, w = (jnp.asarray(0.3 * rng.standard_normal((model.structure.n_nodes, 6)))
+                for _ in range(3))
+    beta_p, gamma_p = iteration_factors(0.8, 0.01)
+    inert = element_inertia(model)
+    matrix = jax.jit(residual_and_iteration_matrix, static_argnums=10)
+    out = []
+    for tangent in ("closed_form", "autodiff"):
+        r, blocks = matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p, None, tangent)
+        out.append((np.asarray(r), np.asarray(linalg.dense(blocks))))
+    return out
+
+
 # ----------------------------------------------------------------------------- references
 def rot_x(a):
     """Rotation by ``a`` (rad) about x."""

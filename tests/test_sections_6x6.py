@@ -59,9 +59,8 @@ import jax.numpy as jnp  # noqa: E402
 
 import simsoft_jax as sj  # noqa: E402
 from simsoft_jax import assembly, lie, linalg, loads, sections  # noqa: E402
-from simsoft_jax.dynamics import element_inertia  # noqa: E402
-from simsoft_jax.dynamics.residual import residual_and_iteration_matrix  # noqa: E402
-from simsoft_jax.dynamics.scheme import iteration_factors  # noqa: E402
+
+from conftest import iteration_matrices  # noqa: E402
 
 DIAG = {"EA": 2e3, "GAy": 1e3, "GAz": 1.5e3, "GJ": 0.8, "EIy": 1.0, "EIz": 1.7}
 INERTIA = {"rhoA": 0.2, "rhoJ": 2e-3, "rhoIy": 1e-3, "rhoIz": 1.5e-3}
@@ -160,17 +159,8 @@ def test_coupled_static_tangent_paths_agree_with_jacfwd():
 def test_coupled_dynamic_iteration_matrix_paths_agree():
     model = loads.loads_at(sj.build_model(sj.Scene.from_dict(
         scene(matrix_key(coupled_matrix()), kind="dynamic"))), 0.0)
-    R, p = deformed(model, 1)
-    rng = np.random.default_rng(4)
-    v, vd, w = (jnp.asarray(0.3 * rng.standard_normal((model.structure.n_nodes, 6)))
-                for _ in range(3))
-    beta_p, gamma_p = iteration_factors(0.8, 0.01)
-    inert = element_inertia(model)
-    matrix = jax.jit(residual_and_iteration_matrix, static_argnums=10)
-    (r1, b1), (r2, b2) = (matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p, None, t)
-                          for t in ("closed_form", "autodiff"))
-    S1, S2 = np.asarray(linalg.dense(b1)), np.asarray(linalg.dense(b2))
-    np.testing.assert_allclose(np.asarray(r1), np.asarray(r2), rtol=0, atol=1e-10)
+    (r1, S1), (r2, S2) = iteration_matrices(model, *deformed(model, 1))
+    np.testing.assert_allclose(r1, r2, rtol=0, atol=1e-10)
     np.testing.assert_allclose(S1, S2, rtol=0, atol=1e-10 * np.abs(S1).max())
 
 

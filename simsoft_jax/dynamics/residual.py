@@ -115,7 +115,7 @@ def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p,
         if s.has_mass_damping:  # c M_e v_e: M_e is fixed by the reference shape, so C only
             g, C = g + c_mass * (mass @ ve), C + c_mass * mass
         f, K = element_force_and_tangent(P, d, stress, stress_jac, RA, length, dead, follower,
-                                         inert[0], qw, ql)
+                                         inertia.line_density(inert), qw, ql)
         return f + mass @ vde + g, K, C, mass
 
     if tangent == "autodiff":

@@ -14,7 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .. import element, mechanisms
+from .. import element, lie, mechanisms
 from .._xla import jit
 from ..assembly import apply_constraints, assemble_blocks, attachments_and_tangents
 from ..linalg import block_solve, factorize_coupled, solve_coupled
@@ -22,7 +22,6 @@ from ..drives import reduce, slide_maps
 from ..loads import loads_at
 from ..model import Model
 from ..statics import as_traced
-from ..terms.masses import spatial_inertia
 from ..status import Status, describe, poison_gradient, raise_if_failed
 from .memory import empty_newton_memory
 from .newton import advance, attempt
@@ -219,7 +218,7 @@ def energy(model: Model, R, p, v):
     kinetic = 0.5 * jnp.einsum("ei,eij,ej->", ve, element_inertia(model).masses, ve)
     if model.structure.mass_nodes:
         V = v[jnp.asarray(model.structure.mass_nodes)]
-        M6 = jax.vmap(spatial_inertia)(model.mass, model.mass_offset, model.mass_inertia)
+        M6 = jax.vmap(lie.spatial_inertia)(model.mass, model.mass_offset, model.mass_inertia)
         kinetic = kinetic + 0.5 * jnp.einsum("ki,kij,kj->", V, M6, V)
     d = jax.vmap(element.relative_twist)(R[a], p[a], R[a + 1], p[a + 1])
     strain = jnp.sum(jax.vmap(element.strain_energy)(d, model.d0, model.length,

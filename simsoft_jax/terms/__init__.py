@@ -38,10 +38,11 @@ class Element(NamedTuple):
 
 
 class ElementData(NamedTuple):
-    """An element's model arrays: d0 (6,), length (m), stiffness, inertia, viscosity (6,)
-    diagonals, q_world, q_local (3,) distributed loads (N/m), gravity (3,) (m/s^2), maps
-    (G,6,12) and mass (12,12) (dynamics; see :mod:`simsoft_jax.inertia`), point_dead,
-    point_follower (6,) a point load inside the element at point_xi ()
+    """An element's model arrays: d0 (6,), length (m), stiffness, inertia (6,) diagonals or
+    (6,6) matrices (:mod:`simsoft_jax.sections`), viscosity (6,) diagonal, q_world,
+    q_local (3,) distributed loads (N/m), gravity (3,) (m/s^2), maps (G,6,12) and mass
+    (12,12) (dynamics; see :mod:`simsoft_jax.inertia`), point_dead, point_follower (6,) a
+    point load inside the element at point_xi ()
     (:mod:`.point_in_element`), mass_damping () mass-proportional damping constant (1/s,
     :mod:`.mass_damping`; None in statics), tendon_tension (M,) N (zero for tendons that
     do not pass the element), tendon_offset, tendon_slope (M,Q,2) (:mod:`.tendons`),

@@ -14,7 +14,7 @@ import jax.numpy as jnp
 from .. import lie
 from .. import actuator_tables
 from . import (Element, chambers, contact, distributed, elastic, element_state, inertia,
-               mass_damping, nodal, point_in_element, tendons, viscous)
+               mass_damping, nodal, offset_gravity, point_in_element, tendons, viscous)
 
 
 def element_residual(structure, lam, dynamic: bool):
@@ -36,6 +36,8 @@ def element_residual(structure, lam, dynamic: bool):
         if dead:
             r = r + distributed.dead_force(el, data, lam, s.has_gravity,
                                            s.has_distributed_world)
+        if s.has_gravity and s.inertia_offset:
+            r = r + offset_gravity.force(el, data, lam)
         if s.has_distributed_local:
             r = r + distributed.follower_force(el, data, lam)
         if s.has_point_dead or s.has_point_follower:

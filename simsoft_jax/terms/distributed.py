@@ -4,6 +4,7 @@ follower loads (turning with the section)."""
 import jax.numpy as jnp
 
 from .. import element
+from ..inertia import line_density
 
 
 def dead_force(el, data, lam, with_gravity: bool, with_world: bool):
@@ -13,7 +14,7 @@ def dead_force(el, data, lam, with_gravity: bool, with_world: bool):
     if with_world:
         q = q + data.q_world
     if with_gravity:
-        q = q + data.inertia[0] * data.gravity
+        q = q + line_density(data.inertia) * data.gravity
     stress, _, direct, _ = element.dead_load_terms(el.RA, el.d, el.P, data.length, -lam * q)
     return el.P.T @ stress + direct
 

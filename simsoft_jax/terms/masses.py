@@ -7,9 +7,10 @@ tensor ``J_c`` (3,3) (kg m^2, section frame, about the centre). With the node's 
 velocity ``V = [v; w]`` (section frame, spec S31), the centre moves with
 ``v + w x c``; its momentum about the node is ``h = M6 V`` with the spatial inertia
 ``M6 = [[m I, -m C], [m C, J_c - m C C]]`` (``C = skew(c)``; kinetic energy
-``V^T M6 V / 2``). The Newton-Euler equations in the moving section frame
-(rate of momentum plus its transport, e.g. Murray, Li & Sastry 1994, ch. 4) give the
-inertial force ``M6 Vdot + [w x h_lin; w x h_ang + v x h_lin]``; the weight enters as
+``V^T M6 V / 2``; :func:`simsoft_jax.lie.spatial_inertia`). The Newton-Euler equations
+in the moving section frame (rate of momentum plus its transport, e.g. Murray, Li &
+Sastry 1994, ch. 4) give the inertial force
+``M6 Vdot + [w x h_lin; w x h_ang + v x h_lin]``; the weight enters as
 :func:`simsoft_jax.terms.offset_loads.force` of ``m g``. Residual side, (6,) per mass.
 """
 import jax.numpy as jnp
@@ -18,17 +19,10 @@ from .. import lie
 from . import offset_loads
 
 
-def spatial_inertia(mass, offset, inertia):
-    """``M6`` (6,6) about the node, section frame (see the module docstring)."""
-    C = lie.skew(offset)
-    eye = jnp.eye(3, dtype=offset.dtype)
-    return jnp.block([[mass * eye, -mass * C], [mass * C, inertia - mass * C @ C]])
-
-
 def inertial_force(V, Vdot, mass, offset, inertia):
     """``M6 Vdot + gyroscopic force`` (6,) of the mass at its node's body velocity ``V``
     (6,) and acceleration ``Vdot`` (6,)."""
-    M6 = spatial_inertia(mass, offset, inertia)
+    M6 = lie.spatial_inertia(mass, offset, inertia)
     h = M6 @ V
     v, w = V[:3], V[3:]
     gyro = jnp.concatenate([jnp.cross(w, h[:3]), jnp.cross(w, h[3:]) + jnp.cross(v, h[:3])])

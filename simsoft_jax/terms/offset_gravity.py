@@ -1,0 +1,42 @@
+"""Gravity on a section whose centre of mass is off the rod's axis (a full section inertia
+with an offset, :func:`simsoft_jax.sections.inertia_matrix`): the weight per unit length
+``rhoA g`` acts at ``p(s) + R(s) c``, not on the axis.
+
+Its potential is ``-int_0^L rhoA g . (p(s) + R(s) c) ds``; the ``p(s)`` part is the
+distributed dead load of :mod:`.distributed` (spec S44), this module adds the ``R(s) c``
+part, a distributed moment ``c x R(s)^T (rhoA g)`` (section frame) that turns with the
+section. Under the right perturbations of the nodal frames the section at ``xi = s/L``
+moves by ``N(xi, d) x`` (the velocity-field map of spec S38,
+:func:`simsoft_jax.element.velocity_field_map`), with ``R(s) = R_A exp(xi d_w)``, so the
+gradient of the potential, on the residual side, is
+``-lam int_0^L N(xi, d)^T [0; c x R(s)^T (rhoA g)] ds`` (12,) (the point-load form of
+:mod:`.point_in_element` and :mod:`.offset_loads` integrated along the element). Gauss-
+Legendre with ``QUADRATURE`` = 3 points (exact for integrands of degree <= 5 in s, like
+the other distributed loads); tangent by ``jax.jacfwd`` on both tangent paths.
+"""
+import jax
+import jax.numpy as jnp
+
+from .. import element, lie
+from ..actuator_tables import gauss_rule
+from ..inertia import centre_of_mass, line_density
+
+QUADRATURE = 3
+
+
+def force(el, data, lam):
+    """Nodal forces (12,) ``-lam int N^T [0; c x R(s)^T (rhoA g)] ds`` of one element
+    (residual side): ``data.inertia`` the section inertia (6,6) (rhoA kg/m, centre of mass
+    c m), ``data.gravity`` g (3,) m/s^2, ``data.length`` L m."""
+    c = centre_of_mass(data.inertia)
+    weight = line_density(data.inertia) * data.gravity          # N/m, world frame
+    points, weights = gauss_rule(QUADRATURE)
+    zero = jnp.zeros(3, el.d.dtype)
+
+    def at(xi, w):
+        R = el.RA @ lie.exp_so3(xi * el.d[3:])
+        wrench = jnp.concatenate([zero, jnp.cross(c, R.T @ weight)])
+        return w * element.velocity_field_map(xi, el.d, el.P).T @ wrench
+
+    return -lam * data.length * jnp.sum(jax.vmap(at)(jnp.asarray(points),
+                                                    jnp.asarray(weights)), axis=0)
