@@ -69,9 +69,9 @@ def _chunk(model: Model, settings: DynamicSettings, carry, h, fresh):
     or from the start state of ``model`` when ``fresh``. Returns the carry at the end and
     per block ``(t, R, p, v, iterations (B, save_every), substeps (B, save_every),
     multipliers)``."""
-    carry = jax.lax.cond(fresh, lambda c: first_carry(model, initial_state(model)),
-                         lambda c: c, carry)
     inert = element_inertia(model)
+    carry = jax.lax.cond(fresh, lambda c: first_carry(model, initial_state(model, 0.0, inert)),
+                         lambda c: c, carry)
     idle = jnp.zeros(settings.save_every, jnp.int32)
 
     def block(c, h_block):
