@@ -101,7 +101,9 @@ class Result:
     newton_iterations (int, total), residual_norm (static: N, weighted; dynamic: at the
     failed step, None when converged), load_level (static: fraction of the loads
     reached), failed_at (dynamic: time of the failed step or None),
-    time ((T,) s, dynamic only), wall_time_s (after compilation), compile_time_s, model,
+    time ((T,) s, dynamic only), wall_time_s (after compilation; static: with the
+    stability check), compile_time_s, model (NumPy arrays: ``build_model(scene,
+    device=False)``),
     raw (the :class:`~simsoft_jax.statics.Equilibrium` or
     :class:`~simsoft_jax.dynamics.Trajectory`), stability (static only, None when not
     checked (not converged, or ``run(..., stability=False)``):
