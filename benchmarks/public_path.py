@@ -5,18 +5,21 @@ run, for a static scene and the three helical scenes.
     PYTHONPATH=. python benchmarks/public_path.py [--quick] [--out DIR] [--base DIR]
 
 Per scene: the kernel (median after a warm-up; dynamic: ``sj.simulate`` of all the
-scene's steps from the start state); ``sj.run`` warm (same process, compiled); the
-command line ``simsoft-jax run SCENE -o out.json`` in a fresh process: the "solve" and
-"compile" seconds it prints, with and without the progress line (``--no-progress``),
-cold (an empty persistent compilation cache) and cached (its second run), and its wall
-time including the Python start. ``--base DIR``: a checkout of the code before this
-work (e.g. ``git archive 333d7e7``), whose command line is run the same way in the same
-run (cold: it has no persistent cache). Ratios against the issue's targets: run warm
-<= 1.1 x kernel, command-line solve with progress <= 1.3 x kernel, command-line compile
-in a fresh process <= 50 % of before (second run: <= 0.5 s). Not a test.
+scene's steps from the start state) and ``sj.run`` warm (compiled), both in one fresh
+process per checkout, as wall and as CPU time of the process (CPU time is less
+sensitive to other jobs on a shared machine); the command line ``simsoft-jax run SCENE
+-o out.json`` in a fresh process: the "solve" and "compile" seconds it prints, with and
+without the progress line (``--no-progress``), cold (an empty persistent compilation
+cache) and cached (its second run), and its wall time including the Python start.
+``--base DIR``: a checkout of the code before this work (e.g. ``git archive 554afbd``),
+measured the same way in the same run, alternating with this checkout (cold: an empty
+cache folder). Ratios against the issue's targets: run warm <= 1.1 x kernel,
+command-line solve with progress <= 1.3 x kernel, command-line compile in a fresh
+process <= 50 % of before (second run: <= 0.5 s). Not a test.
 """
 from __future__ import annotations
 
+import json
 import os
 import re
 import subprocess
@@ -36,31 +39,61 @@ SCENES = ("princeton_theta30.toml",) + common.HELICAL
 _PRINTED = re.compile(r"solve ([0-9.]+) s, compile ([0-9.]+) s")
 
 
-def kernel(scene: sj.Scene, repeats: int) -> float:
-    """Median seconds of the solver on a built model (compiled before timing)."""
-    if scene.solver.kind == "static":
-        model, settings = common.static_setup(scene)
-        return common.median_time(sj.solve_static, model, settings, repeats=repeats)[0]
-    model, settings = common.dynamic_setup(scene)
-    return common.median_time(sj.simulate, model, settings, repeats=repeats)[0]
+# kernel and sj.run warm in a fresh process of a checkout: median wall and CPU seconds
+_WARM = """
+import json, sys, time
+import numpy as np
+import simsoft_jax as sj
+from simsoft_jax.statics import as_traced, settings_from_scene
+scene, repeats = sj.load_scene(sys.argv[1]), int(sys.argv[2])
+model, s = sj.build_model(scene), scene.solver
+if s.kind == "static":
+    settings = as_traced(settings_from_scene(s))
+    kernel = lambda: sj.solve_static(model, settings).p
+else:
+    settings = as_traced(sj.DynamicSettings(dt=s.dt, steps=int(round(s.t_end / s.dt)),
+        rho_inf=s.rho_inf, tolerance=s.tolerance, max_iterations=s.max_iterations))
+    kernel = lambda: sj.simulate(model, settings).p
+calls = {"kernel": kernel, "run": lambda: sj.run(scene).raw.p}
+wall, cpu = {k: [] for k in calls}, {k: [] for k in calls}
+for f in calls.values():
+    np.asarray(f())
+for _ in range(repeats):
+    for k, f in calls.items():   # alternated
+        w, c = time.perf_counter(), time.process_time()
+        np.asarray(f())
+        wall[k].append(time.perf_counter() - w)
+        cpu[k].append(time.process_time() - c)
+print(json.dumps({f"{k}_{what}": float(np.median(d[k])) for what, d in
+                  (("wall", wall), ("cpu", cpu)) for k in calls}))
+"""
 
 
-def run_warm(scene: sj.Scene, repeats: int) -> float:
-    """Median seconds of ``sj.run(scene)`` (wall time of the whole call) after a warm-up."""
-    return common.median_time(lambda: sj.run(scene).time, repeats=repeats)[0]
+def warm(scene: Path, root: Path, repeats: int) -> dict:
+    """Kernel and ``sj.run`` warm (median seconds, wall and CPU) in a fresh process of
+    the checkout ``root``."""
+    env = {**os.environ, "PYTHONPATH": str(root), "SIMSOFT_JAX_CACHE": "0"}
+    out = subprocess.run([sys.executable, "-c", _WARM, str(scene), str(repeats)],
+                         capture_output=True, text=True, env=env, cwd=root)
+    if out.returncode != 0:
+        raise RuntimeError(f"warm timing of {scene} in {root} failed:\n{out.stderr}")
+    return json.loads(out.stdout.splitlines()[-1])
 
 
 def command_line(scene: Path, root: Path, cache: Path | None, progress: bool) -> dict:
     """One ``simsoft-jax run`` in a fresh process from the checkout ``root``: the solve and
     compile seconds it prints and the process's wall time."""
     env = {**os.environ, "PYTHONPATH": str(root)}
-    env.pop("SIMSOFT_JAX_CACHE_DIR", None)
+    env.pop("SIMSOFT_JAX_CACHE", None)
     with tempfile.TemporaryDirectory() as tmp:
         args = [sys.executable, "-m", "simsoft_jax.cli", "run", str(scene), "-o",
                 str(Path(tmp) / "out.json")]
         if root == REPO:
+            env.pop("SIMSOFT_JAX_CACHE_DIR", None)
             args += (["--cache-dir", str(cache)] if cache else ["--no-cache"])
             args += [] if progress else ["--no-progress"]
+        else:   # an older checkout: its own empty cache folder, if it has a cache
+            env["SIMSOFT_JAX_CACHE_DIR"] = str(Path(tmp) / "cache")
         start = time.perf_counter()
         out = subprocess.run(args, capture_output=True, text=True, env=env, cwd=tmp)
         wall = time.perf_counter() - start
@@ -83,8 +116,15 @@ def run(quick: bool = False, out: Path = Path("out/bench"), base: Path | None = 
             cached = command_line(path, REPO, Path(cache), progress=True)
             quiet = command_line(path, REPO, Path(cache), progress=False)
         before = command_line(path, base, None, progress=True) if base else None
-        row["kernel_ms"] = 1e3 * kernel(scene, repeats)
-        row["run_warm_ms"] = 1e3 * run_warm(scene, repeats)
+        now = warm(path, REPO, repeats)
+        then = warm(path, base, repeats) if base else None
+        row["kernel_ms"], row["run_warm_ms"] = 1e3 * now["kernel_wall"], 1e3 * now["run_wall"]
+        row["run_cpu_ratio"] = now["run_cpu"] / now["kernel_cpu"]
+        if then:
+            row.update(before_kernel_ms=1e3 * then["kernel_wall"],
+                       before_run_ms=1e3 * then["run_wall"],
+                       before_run_ratio=then["run_wall"] / then["kernel_wall"],
+                       before_run_cpu_ratio=then["run_cpu"] / then["kernel_cpu"])
         row["cli_solve_ms"] = 1e3 * cached["solve"]
         row["cli_solve_quiet_ms"] = 1e3 * quiet["solve"]
         row["compile_cold_s"], row["compile_cached_s"] = cold["compile"], cached["compile"]
@@ -101,6 +141,9 @@ def run(quick: bool = False, out: Path = Path("out/bench"), base: Path | None = 
     common.table(rows, [
         ("scene", "scene", "s"), ("kernel_ms", "kernel ms", ".1f"),
         ("run_warm_ms", "run warm ms", ".1f"), ("run_ratio", "/kernel", ".2f"),
+        ("run_cpu_ratio", "cpu /kernel", ".2f"), ("before_kernel_ms", "before kernel", ".1f"),
+        ("before_run_ms", "before run", ".1f"), ("before_run_ratio", "/kernel", ".2f"),
+        ("before_run_cpu_ratio", "cpu /kernel", ".2f"),
         ("cli_solve_ms", "cli solve ms", ".1f"), ("cli_ratio", "/kernel", ".2f"),
         ("cli_solve_quiet_ms", "no progress", ".1f"),
         ("before_solve_ms", "before solve", ".1f")],

@@ -3,8 +3,8 @@
 Every function returns nodal frames ``(R, p)`` with shapes ``(n+1, 3, 3)`` and
 ``(n+1, 3)``, in the rod's base frame (node 0 at the origin with identity rotation), for
 nodes placed at the fractions ``u`` (n+1,) of the arc length (0 = base, 1 = tip;
-:func:`even` for equal elements, ``RodSpec.node_fractions`` for a rod whose segments have
-their own lengths). Local x is the centreline tangent.
+``i / n`` for equal elements; ``RodSpec.node_fractions`` also for a rod whose segments
+have their own lengths). Local x is the centreline tangent.
 
 * straight, arc and helix are curves of constant strain ``f0`` and are placed exactly:
   ``H(s) = exp(s f0)`` (seed eq. 3 with constant f, spec S25, S32), so helical elements
@@ -29,18 +29,25 @@ import numpy as np
 
 
 def _skew(w):
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    """Skew matrices of the rows of ``w`` (..., 3) -> (..., 3, 3)."""
+    z = np.zeros(w.shape[:-1])
+    return np.stack([np.stack([z, -w[..., 2], w[..., 1]], -1),
+                     np.stack([w[..., 2], z, -w[..., 0]], -1),
+                     np.stack([-w[..., 1], w[..., 0], z], -1)], -2)
 
 
 def _exp_se3_np(xi):
-    """NumPy SE(3) exponential by scaling and squaring of a Taylor series (reference use)."""
-    X = np.zeros((4, 4))
-    X[:3, :3] = _skew(xi[3:])
-    X[:3, 3] = xi[:3]
-    norm = max(np.abs(X).sum(axis=0).max(), 1e-300)
+    """NumPy SE(3) exponential (..., 4, 4) of twists ``xi`` (..., 6) by scaling and
+    squaring of a Taylor series (reference use); one scaling for the whole batch (that
+    of its largest twist)."""
+    xi = np.asarray(xi, float)
+    X = np.zeros(xi.shape[:-1] + (4, 4))
+    X[..., :3, :3] = _skew(xi[..., 3:])
+    X[..., :3, 3] = xi[..., :3]
+    norm = max(np.abs(X).sum(axis=-2).max(initial=0.0), 1e-300)
     squarings = max(0, int(np.ceil(np.log2(norm))) + 1)
     Y = X / 2.0**squarings
-    E, term = np.eye(4), np.eye(4)
+    E = term = np.broadcast_to(np.eye(4), X.shape)
     for k in range(1, 25):
         term = term @ Y / k
         E = E + term
@@ -49,15 +56,10 @@ def _exp_se3_np(xi):
     return E
 
 
-def even(elements):
-    """Fractions ``u`` (elements+1,) of equal elements: ``i / elements``."""
-    return np.linspace(0.0, 1.0, elements + 1)
-
-
 def constant_strain_frames(strain, length, fractions):
     """Frames ``exp(s_i f0)`` at ``s_i = u_i L`` (spec S25 with constant f)."""
     s = np.asarray(fractions, float) * length
-    H = np.array([_exp_se3_np(si * np.asarray(strain, float)) for si in s])
+    H = _exp_se3_np(s[:, None] * np.asarray(strain, float))
     return H[:, :3, :3], H[:, :3, 3]
 
 

@@ -125,11 +125,18 @@ def translation_coefficients(w):
 # hat / vee / adjoints (spec S1-S4)
 # --------------------------------------------------------------------------------------
 
+# skew(w)_ij = -eps_ijk w_k (Levi-Civita symbol eps): the skew matrix as one product and
+# sum (a few operations in a compiled program instead of some twenty per call)
+_SKEW_BASIS = -np.array([[[float(np.linalg.det(np.eye(3)[[i, j, k]])) for k in range(3)]
+                          for j in range(3)] for i in range(3)])
+
+
 def skew(w):
-    """3x3 skew matrix with ``skew(w) @ y = w x y`` (seed eq. 115, spec S1)."""
+    """3x3 skew matrix with ``skew(w) @ y = w x y`` (seed eq. 115, spec S1); ``w`` (3,)
+    or (3, ...) gives (3, 3, ...)."""
     w = jnp.asarray(w)
-    z = jnp.zeros_like(w[0])
-    return jnp.array([[z, -w[2], w[1]], [w[2], z, -w[0]], [-w[1], w[0], z]])
+    basis = _SKEW_BASIS.reshape((3, 3, 3) + (1,) * (w.ndim - 1))
+    return jnp.sum(basis * w, axis=2)
 
 
 def vee_so3(W):

@@ -117,9 +117,9 @@ jax.tree_util.register_dataclass(TimeLaws, data_fields=["params", "table_t", "ta
 
 
 def build_laws(profiles) -> TimeLaws:
-    """:class:`TimeLaws` of a list of ProfileSpec."""
+    """:class:`TimeLaws` of a list of ProfileSpec (NumPy float64 leaves)."""
     return TimeLaws(tuple(p.kind for p in profiles),
-                    *(jnp.asarray(a, jnp.float64) for a in profile_tables(profiles)))
+                    *(np.asarray(a, np.float64) for a in profile_tables(profiles)))
 
 
 def obstacles_at(model, t):
@@ -179,7 +179,8 @@ def profile_tables(profiles):
 
 
 def build_channels(loads, structure) -> LoadChannels:
-    """One channel per load spec in ``loads``, with its pattern at unit scale."""
+    """One channel per load spec in ``loads``, with its pattern at unit scale (NumPy
+    float64 leaves)."""
     n, e = structure.n_nodes, structure.n_elements
     k = len(loads)
     rods = {r.name: r for r in structure.rods}
@@ -200,8 +201,6 @@ def build_channels(loads, structure) -> LoadChannels:
             target = dead if load.frame == "world" else follower
             cols = slice(0, 3) if load.kind == "force" else slice(3, 6)
             target[i, info.first_node + load.node, cols] = load.vector
-    f64 = lambda a: jnp.asarray(a, jnp.float64)  # noqa: E731
-    return LoadChannels(tuple(ld.profile.kind for ld in loads), f64(params),
-                        f64(table_t), f64(table_scale), f64(dead), f64(follower),
-                        f64(dist_world), f64(dist_local), f64(point_dead),
-                        f64(point_follower))
+    return LoadChannels(tuple(ld.profile.kind for ld in loads), params, table_t,
+                        table_scale, dead, follower, dist_world, dist_local, point_dead,
+                        point_follower)

@@ -308,7 +308,7 @@ def _consecutive_twists(R, p):
 
 def _reference_twists(R, p):
     """``d0_e = log(H_e^-1 H_e+1)`` for consecutive frames (spec S34), (n,6)."""
-    return np.asarray(_consecutive_twists(jnp.asarray(R), jnp.asarray(p)))
+    return np.asarray(_consecutive_twists(R, p))
 
 
 def _check_held(scene, frames, rods) -> set:
@@ -375,11 +375,14 @@ def _drive_tables(scene, rods):
     return times, disp, rot, slide, nodes, sliding
 
 
-def build_model(scene) -> Model:
+def build_model(scene, device: bool = True) -> Model:
     """Discretize a validated :class:`~simsoft_jax.scene.Scene` into a :class:`Model`.
 
     Loads with a constant time law go into the nodal/distributed arrays, the others into
     ``channels``; the scene's ``[solver].inertia`` chooses the element inertia (static).
+    ``device``: the arrays on the default device (one batched transfer); False keeps them
+    NumPy float64 arrays, which a compiled program transfers when it is called (cheaper
+    for a model solved once, as :func:`simsoft_jax.run` does).
     """
     rods, elem_nodes = [], []
     R0, p0, d0, K, M, V, C = [], [], [], [], [], [], []
@@ -511,10 +514,10 @@ def build_model(scene) -> Model:
         joint_offset_a=joints.offset_a, joint_offset_b=joints.offset_b,
         joint_rotation=joints.rotation, **tendon_data, **chamber_data,
         **contact_tables(scene, K, length))
+    model = Model(structure=structure, channels=build_channels(timed, structure),
+                  tendon_law=build_laws([t.profile for t in getattr(scene, "tendons", ())]),
+                  chamber_law=build_laws([c.profile for c in getattr(scene, "chambers", ())]),
+                  obstacle_law=build_laws(motion_profiles(obstacles)),
+                  **{k: np.asarray(a, np.float64) for k, a in arrays.items()})
     # one batched transfer (a device_put per array costs more than the arrays' numbers)
-    arrays = jax.device_put({k: np.asarray(a, np.float64) for k, a in arrays.items()})
-    return Model(structure=structure, channels=build_channels(timed, structure),
-                 tendon_law=build_laws([t.profile for t in getattr(scene, "tendons", ())]),
-                 chamber_law=build_laws([c.profile for c in getattr(scene, "chambers", ())]),
-                 obstacle_law=build_laws(motion_profiles(obstacles)),
-                 **arrays)
+    return jax.device_put(model) if device else model

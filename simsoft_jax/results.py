@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import compile_cache, contacts
+from ._xla import jit
 from .compile_cache import compile_stored
 from .dynamics import Trajectory, rollout
 from .dynamics.driver import compile_key
@@ -54,10 +55,28 @@ class _CompiledCache(collections.OrderedDict):
 _COMPILED = _CompiledCache()
 
 
+@jit
+def _solve_static_checked(model: Model, settings, check):
+    """The static solve and, when ``check`` (a traced bool) and it converged, the count
+    of negative eigenvalues of the tangent at the equilibrium
+    (:func:`~simsoft_jax.stability.negative_eigenvalues`; -1 when not counted), in one
+    program. Structures with rod-rod contact are never checked: the count reads the
+    chains' tangent, which lacks it."""
+    eq = _solve_static(model, settings)
+    if model.structure.self_contact:
+        return eq, jnp.array(-1)
+    count = jax.lax.cond(check & eq.converged,
+                         lambda: negative_eigenvalues(model, eq).astype(int),
+                         lambda: jnp.array(-1))
+    return eq, count
+
+
 def compiled_static_solver(model: Model, settings):
-    """The compiled static solver for ``model``'s structure and integer settings, and the
-    seconds spent compiling it now (0.0 when it was already compiled in this process).
-    Call it as ``solver(model, as_traced(settings))``."""
+    """The compiled static solver with its stability check for ``model``'s structure and
+    integer settings, and the seconds spent compiling it now (0.0 when it was already
+    compiled in this process). Call it as ``solver(model, as_traced(settings), check)``
+    (``check`` a bool): it returns the :class:`~simsoft_jax.statics.Equilibrium` and the
+    count of negative eigenvalues (-1: not counted)."""
     key = ("static",) + compile_key(model, settings)
     if key in _COMPILED:
         return _COMPILED[key], 0.0
@@ -66,9 +85,9 @@ def compiled_static_solver(model: Model, settings):
     fields["tendon_tension"] = 0 if model.structure.tendon_names else None
     fields["multipliers"] = 0 if model.structure.joints else None
     fields["previous"] = (0, 0) if model.structure.has_friction else None
-    out_tree = jax.tree_util.tree_structure(Equilibrium(**fields))
-    compiled = compile_stored(_solve_static, (model, as_traced(settings)), out_tree,
-                              "static")
+    out_tree = jax.tree_util.tree_structure((Equilibrium(**fields), 0))
+    compiled = compile_stored(_solve_static_checked,
+                              (model, as_traced(settings), np.bool_(True)), out_tree, "static")
     _COMPILED[key] = compiled
     return compiled, time.perf_counter() - start
 
@@ -82,7 +101,9 @@ class Result:
     newton_iterations (int, total), residual_norm (static: N, weighted; dynamic: at the
     failed step, None when converged), load_level (static: fraction of the loads
     reached), failed_at (dynamic: time of the failed step or None),
-    time ((T,) s, dynamic only), wall_time_s (after compilation), compile_time_s, model,
+    time ((T,) s, dynamic only), wall_time_s (after compilation; static: with the
+    stability check), compile_time_s, model (NumPy arrays: ``build_model(scene,
+    device=False)``),
     raw (the :class:`~simsoft_jax.statics.Equilibrium` or
     :class:`~simsoft_jax.dynamics.Trajectory`), stability (static only, None when not
     checked (not converged, or ``run(..., stability=False)``):
@@ -274,24 +295,6 @@ def _run_dynamic(scene: Scene, model: Model, progress=None) -> Result:
     return Result(scene, model, trajectory, wall, compile_time)
 
 
-_negative_eigenvalues = jax.jit(negative_eigenvalues)
-
-
-def check_stability(model: Model, equilibrium) -> tuple[dict, float]:
-    """``{"negative_eigenvalues": n, "stable": n == 0}`` at a static equilibrium
-    (:mod:`simsoft_jax.stability`), and the seconds spent compiling the check now (once
-    per structure; 0.0 afterwards)."""
-    key = ("stability",) + compile_key(model, None)
-    seconds = 0.0
-    if key not in _COMPILED:
-        start = time.perf_counter()
-        _COMPILED[key] = compile_stored(_negative_eigenvalues, (model, equilibrium),
-                                        jax.tree_util.tree_structure(0), "stability")
-        seconds = time.perf_counter() - start
-    n = int(_COMPILED[key](model, equilibrium))
-    return {"negative_eigenvalues": n, "stable": n == 0}, seconds
-
-
 def run(scene, progress=None, stability: bool = True) -> Result:
     """Solve a scene (a :class:`Scene`, a dict or a path to a .toml/.json file).
 
@@ -311,16 +314,15 @@ def run(scene, progress=None, stability: bool = True) -> Result:
         scene = load_scene(scene)
     elif isinstance(scene, dict):
         scene = Scene.from_dict(scene)
-    model = build_model(scene)
+    model = build_model(scene, device=False)  # host arrays: the program transfers them
     if scene.solver.kind == "dynamic":
         return _run_dynamic(scene, model, progress)
     settings = settings_from_scene(scene.solver)
     solver, compile_time = compiled_static_solver(model, settings)
     start = time.perf_counter()
-    equilibrium = jax.device_get(solver(model, as_traced(settings)))
+    equilibrium, count = jax.device_get(solver(model, as_traced(settings),
+                                               np.bool_(stability)))
     wall = time.perf_counter() - start
-    # the stability check reads the chains' tangent, which lacks rod-rod contact
-    check = stability and equilibrium.converged and not model.structure.self_contact
-    checked, check_compile = (check_stability(model, equilibrium) if check else (None, 0.0))
-    compile_time += check_compile
+    checked = None if count < 0 else {"negative_eigenvalues": int(count),
+                                      "stable": int(count) == 0}
     return Result(scene, model, equilibrium, wall, compile_time, checked)

@@ -86,8 +86,14 @@ jax.tree_util.register_dataclass(
 
 def as_traced(settings):
     """``settings`` with every float leaf a float64 array, so that Python floats, NumPy
-    scalars and arrays all hit the same compiled program."""
-    return jax.tree_util.tree_map(lambda x: jnp.asarray(x, jnp.float64), settings)
+    scalars and arrays all hit the same compiled program. Host numbers become NumPy
+    arrays (a compiled program transfers them when called; no device transfer each),
+    JAX arrays and tracers stay JAX arrays."""
+    def f64(x):
+        if isinstance(x, (float, int, np.ndarray, np.generic)):
+            return np.asarray(x, np.float64)
+        return jnp.asarray(x, jnp.float64)
+    return jax.tree_util.tree_map(f64, settings)
 
 
 class Equilibrium(NamedTuple):

@@ -45,7 +45,7 @@ def counted_run(args):
 
 def test_second_process_reads_every_program_from_the_cache(tmp_path):
     """A new process running the same structure with another load compiles nothing: every
-    program (solver, stability check, model building) is read from the cache folder
+    program (solver with its stability check, model building) is read from the cache folder
     given by ``--cache-dir`` (before or after ``run``), the traced solver programs too."""
     cache = tmp_path / "xla"
     for k, force in enumerate((-0.01, -0.02)):
@@ -53,8 +53,7 @@ def test_second_process_reads_every_program_from_the_cache(tmp_path):
     cold, _ = counted_run(["--cache-dir", str(cache), "run", str(tmp_path / "s0.json")])
     assert cold["code"] == 0 and cold["misses"] >= 2
     if importlib.util.find_spec("flatbuffers"):   # jax.export needs it to store programs
-        assert sorted(p.name.split("-")[0] for p in (cache / "traced").iterdir()) == [
-            "stability", "static"]
+        assert [p.name.split("-")[0] for p in (cache / "traced").iterdir()] == ["static"]
     warm, text = counted_run(["run", str(tmp_path / "s1.json"), "--cache-dir", str(cache),
                               "--no-stability"])
     assert warm["code"] == 0 and warm["misses"] == 0 and warm["hits"] >= 1, warm

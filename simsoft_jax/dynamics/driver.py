@@ -69,21 +69,19 @@ def _chunk(model: Model, settings: DynamicSettings, carry, h, fresh):
     or from the start state of ``model`` when ``fresh``. Returns the carry at the end and
     per block ``(t, R, p, v, iterations (B, save_every), substeps (B, save_every),
     multipliers)``."""
-    carry = jax.lax.cond(fresh, lambda c: first_carry(model, initial_state(model)),
-                         lambda c: c, carry)
     inert = element_inertia(model)
-    idle = jnp.zeros(settings.save_every, jnp.int32)
+    carry = jax.lax.cond(fresh, lambda c: first_carry(model, initial_state(model, 0.0, inert)),
+                         lambda c: c, carry)
 
     def block(c, h_block):
-        def run(c):
-            step = stepper(model, inert, settings.replace(dt=h_block), False)
-            c, (its, subs) = jax.lax.scan(step, c, None, length=settings.save_every)
-            return c, its.astype(jnp.int32), subs.astype(jnp.int32)
-
-        c, its, subs = jax.lax.cond((h_block > 0.0) & ~c.failed, run,
-                                    lambda c: (c, idle, idle), c)
+        # a step of size 0 does nothing (no Newton iteration): unused blocks, and every
+        # block after a failure
+        h_block = jnp.where(c.failed, 0.0, h_block)
+        step = stepper(model, inert, settings.replace(dt=h_block), False)
+        c, (its, subs) = jax.lax.scan(step, c, None, length=settings.save_every)
         st = c.state
-        return c, (st.t, st.R, st.p, st.v, its, subs, c.memory.multipliers)
+        return c, (st.t, st.R, st.p, st.v, its.astype(jnp.int32), subs.astype(jnp.int32),
+                   c.memory.multipliers)
 
     return jax.lax.scan(block, carry, h)
 

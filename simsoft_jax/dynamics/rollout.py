@@ -63,14 +63,16 @@ class Trajectory(NamedTuple):
         return describe("dynamic", self.status, self.cause, where, residual)
 
 
-def initial_state(model: Model, t0=0.0) -> State:
+def initial_state(model: Model, t0=0.0, inert=None) -> State:
     """Start state: model.R0/p0, velocities model.v0 and consistent accelerations from
     ``M vdot_0 = -g(q_0, v_0, t_0)`` (spec S67); ``a_0 = vdot_0`` (S68). With joints the
     accelerations also meet the joints' acceleration constraint, with multipliers ``mu``:
     ``M vdot_0 + G^T mu = -g``, ``G vdot_0 = -g''[v_0, v_0]``
-    (:func:`simsoft_jax.mechanisms.constraint_curvature`)."""
+    (:func:`simsoft_jax.mechanisms.constraint_curvature`). ``inert``: the model's
+    :func:`~.residual.element_inertia` when the caller has it already (a program that
+    computes it once compiles faster)."""
     t0 = jnp.asarray(t0, jnp.float64)
-    inert = element_inertia(model)
+    inert = element_inertia(model) if inert is None else inert
     zeros = jnp.zeros_like(model.v0)
     g = dynamic_residual(loads_at(model, t0), inert, model.R0, model.p0, model.v0, zeros,
                          masked=False)
@@ -186,8 +188,9 @@ def _simulate(model: Model, settings: DynamicSettings, state: State | None,
     if differentiable and model.structure.slide_drives:
         raise ValueError("constraints: differentiable=True does not support drives with "
                          "slides_along yet (the implicit-function derivative would be wrong)")
-    state = initial_state(model) if state is None else state
-    step = stepper(model, element_inertia(model), settings, differentiable)
+    inert = element_inertia(model)
+    state = initial_state(model, 0.0, inert) if state is None else state
+    step = stepper(model, inert, settings, differentiable)
 
     def save_block(c, _):
         c, (its, subs) = jax.lax.scan(jax.checkpoint(step) if differentiable else step, c,
