@@ -18,9 +18,10 @@
   emitters for every program (the package uses them for its top-level solver programs
   already, :mod:`simsoft_jax._xla`; the gradients a test takes around a solver are
   compiled by a plain ``jax.jit``). The suite compiles far more than it runs: the
-  compilation of a rollout and of a static gradient took 30 and 44 s of CPU time with
-  the defaults and 17 and 18 s with these flags, with the same numbers to all printed
-  digits. A flag that ``XLA_FLAGS`` sets already is kept; ``SIMSOFT_TEST_XLA_DEFAULTS=1``
+  compilation of a 50-step rollout and of a static gradient (tests/test_one_model.py's
+  scenes) took about 30 and 45 s of CPU time with XLA's defaults and 17-20 and 18-21 s
+  with these flags; positions and gradients agree to round-off (3e-16 m, 1e-13
+  relative), so no tolerance depends on them. A flag that ``XLA_FLAGS`` sets already is kept; ``SIMSOFT_TEST_XLA_DEFAULTS=1``
   compiles with XLA's defaults.
 * Independent NumPy references used by several test modules (elementary rotations, the
   skew matrix, the exact pure-bending arc).
