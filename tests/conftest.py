@@ -12,6 +12,17 @@
   dropped by ``jax.clear_caches()`` (when the process holds many memory maps, see
   ``_release_compiled_programs``) are read back from it by later modules and by the
   subprocesses. ``SIMSOFT_JAX_CACHE=0`` runs the tests without it.
+* XLA compile options that halve the suite's compilation time (``XLA_FLAGS``, set in the
+  environment, so also for the examples, notebooks and command-line subprocesses):
+  LLVM at optimization level 0 without its expensive passes, and the classic CPU
+  emitters for every program (the package uses them for its top-level solver programs
+  already, :mod:`simsoft_jax._xla`; the gradients a test takes around a solver are
+  compiled by a plain ``jax.jit``). The suite compiles far more than it runs: the
+  compilation of a 50-step rollout and of a static gradient (tests/test_one_model.py's
+  scenes) took about 30 and 45 s of CPU time with XLA's defaults and 17-20 and 18-21 s
+  with these flags; positions and gradients agree to round-off (3e-16 m, 1e-13
+  relative), so no tolerance depends on them. A flag that ``XLA_FLAGS`` sets already is kept; ``SIMSOFT_TEST_XLA_DEFAULTS=1``
+  compiles with XLA's defaults.
 * Independent NumPy references used by several test modules (elementary rotations, the
   skew matrix, the exact pure-bending arc).
 
@@ -45,6 +56,16 @@ if os.environ.get("SIMSOFT_JAX_CACHE", "1") != "0":
     for name in ("SIMSOFT_JAX_CACHE_DIR", "JAX_COMPILATION_CACHE_DIR"):
         os.environ[name] = COMPILE_CACHE_DIR
     os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"] = "0"
+
+FAST_COMPILE_FLAGS = {"--xla_backend_optimization_level": "0",
+                      "--xla_llvm_disable_expensive_passes": "true",
+                      "--xla_cpu_use_fusion_emitters": "false"}
+if os.environ.get("SIMSOFT_TEST_XLA_DEFAULTS", "0") != "1":
+    _given = os.environ.get("XLA_FLAGS", "").split()
+    _names = {flag.split("=")[0] for flag in _given}
+    os.environ["XLA_FLAGS"] = " ".join(
+        _given + [f"{name}={value}" for name, value in FAST_COMPILE_FLAGS.items()
+                  if name not in _names])
 
 
 def _memory_maps() -> int | None:
