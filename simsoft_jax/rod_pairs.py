@@ -67,7 +67,9 @@ def find_pairs(model, R, p) -> Pairs:
     m = s.contact_points
     X = jax.vmap(lambda RA, pA, RB, pB, L: rod_contact.stations(RA, pA, RB, pB, L, m))(
         *element_poses(model, R, p), model.length)
-    reach = rod_contact.EXTENSION * model.length / m
+    # jnp: a model built on the host (NumPy leaves, sj.run) may be closed over in a traced
+    # function, where NumPy arrays cannot be indexed by the traced pair indices
+    reach = rod_contact.EXTENSION * jnp.asarray(model.length) / m
     centre, radius = broad_phase.bounding_spheres(X, model.contact_radius, reach)
     # the stations' largest distance from the chord: every sub-chord (extended) lies
     # within ``bow + reach`` of the chord (extended by ``reach``)
@@ -101,8 +103,8 @@ def _pair_args(model, R, p, pairs: Pairs):
     _, start, end = _rod_tables(s)
     ends = jnp.asarray(np.stack([start, end], 1))
     ef = jnp.stack([pairs.e, pairs.f], 1)
-    return ((R[pairs.nodes], p[pairs.nodes]), model.contact_radius[ef],
-            model.contact_stiffness[ef], model.length[ef], ends[ef])
+    return ((R[pairs.nodes], p[pairs.nodes]), jnp.asarray(model.contact_radius)[ef],
+            jnp.asarray(model.contact_stiffness)[ef], jnp.asarray(model.length)[ef], ends[ef])
 
 
 def residual(model, R, p):
