@@ -198,6 +198,15 @@ def element_data(model: Model, maps=None, masses=None) -> ElementData:
                        contact=contact_data(model))
 
 
+def rod_end_flags(structure) -> np.ndarray:
+    """Static (E,2) flags: 1 where an element's node A is its rod's first node (column 0)
+    or its node B the rod's last (column 1), else 0."""
+    ends = np.zeros((structure.n_elements, 2))
+    for info in structure.rods:
+        ends[info.first_element, 0] = ends[info.first_element + info.elements - 1, 1] = 1.0
+    return ends
+
+
 def contact_data(model: Model):
     """Per-element :class:`~simsoft_jax.terms.contact.ContactData` (E, ...), the obstacle
     rows broadcast to every element, the end caps (E,2) the contact radius at each rod's
@@ -209,9 +218,7 @@ def contact_data(model: Model):
     def each(a):
         return jnp.broadcast_to(a, (n,) + jnp.shape(a))
 
-    ends = np.zeros((n, 2))
-    for info in model.structure.rods:
-        ends[info.first_element, 0] = ends[info.first_element + info.elements - 1, 1] = 1.0
+    ends = rod_end_flags(model.structure)
     return contact.ContactData(model.contact_radius, model.contact_stiffness,
                                each(model.obstacles), each(model.obstacle_friction),
                                each(model.slip_velocity), each(model.obstacle_velocity),

@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import broad_phase
-from .assembly import assemble_blocks, element_poses
+from .assembly import assemble_blocks, element_poses, rod_end_flags
 from .terms import rod_contact
 
 
@@ -40,15 +40,9 @@ class Pairs(NamedTuple):
     nodes: jax.Array
 
 
-def _rod_tables(structure):
-    """Static per-element tables (E,): rod index, first-/last-element flags."""
-    rod_of, start, end = [], [], []
-    for k, info in enumerate(structure.rods):
-        n = info.elements
-        rod_of += [k] * n
-        start += [1.0] + [0.0] * (n - 1)
-        end += [0.0] * (n - 1) + [1.0]
-    return np.array(rod_of), np.array(start), np.array(end)
+def _rod_of(structure):
+    """Static rod index of each element (E,)."""
+    return np.concatenate([np.full(info.elements, k) for k, info in enumerate(structure.rods)])
 
 
 def _arclength(structure, length):
@@ -88,7 +82,7 @@ def find_pairs(model, R, p) -> Pairs:
             return dist < margin[e] + margin[f]
         return jax.vmap(one)(e.reshape(-1), f.reshape(-1)).reshape(e.shape)
 
-    rod_of, _, _ = _rod_tables(s)
+    rod_of = _rod_of(s)
     s0, s1 = _arclength(s, model.length)
     e, f, active, overflow = broad_phase.candidate_pairs(
         centre, radius, near_pair, rod_of, s0, s1,
@@ -100,8 +94,7 @@ def find_pairs(model, R, p) -> Pairs:
 
 def _pair_args(model, R, p, pairs: Pairs):
     s = model.structure
-    _, start, end = _rod_tables(s)
-    ends = jnp.asarray(np.stack([start, end], 1))
+    ends = jnp.asarray(rod_end_flags(s))
     ef = jnp.stack([pairs.e, pairs.f], 1)
     return ((R[pairs.nodes], p[pairs.nodes]), jnp.asarray(model.contact_radius)[ef],
             jnp.asarray(model.contact_stiffness)[ef], jnp.asarray(model.length)[ef], ends[ef])
