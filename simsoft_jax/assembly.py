@@ -278,19 +278,32 @@ def _element_args(model: Model, R, p):
             model.distributed_world, model.distributed_local)
 
 
+def _placed(n_rows, rows, x):
+    """``x`` (E, ...) with its row e moved to row ``rows[e]`` of an (n_rows, ...) array of
+    zeros; ``rows`` static and distinct. A gather with static indices (or a pad for
+    consecutive rows): XLA on CPU expands a scatter into a loop over the rows."""
+    rows = np.asarray(rows, dtype=int)
+    if rows.size and np.array_equal(rows, np.arange(rows[0], rows[0] + rows.size)):
+        pad = [(int(rows[0]), n_rows - int(rows[-1]) - 1)] + [(0, 0)] * (x.ndim - 1)
+        return jnp.pad(x, pad)
+    source = np.full(n_rows, len(rows))
+    source[rows] = np.arange(len(rows))
+    padded = jnp.concatenate([x, jnp.zeros((1,) + x.shape[1:], x.dtype)])
+    return padded[source]
+
+
 def assemble_vector(n_nodes, element_nodes, f_el):
-    """Scatter element vectors (E,12) to nodes (N,6) (spec S47)."""
-    a = jnp.asarray(element_nodes)
-    return jnp.zeros((n_nodes, 6)).at[a].add(f_el[:, :6]).at[a + 1].add(f_el[:, 6:])
+    """Element vectors (E,12) summed into nodes (N,6) (spec S47)."""
+    a = np.asarray(element_nodes, dtype=int)
+    return _placed(n_nodes, a, f_el[:, :6]) + _placed(n_nodes, a + 1, f_el[:, 6:])
 
 
 def assemble_blocks(n_nodes, element_nodes, k_el):
     """Element matrices (E,12,12) -> block-tridiagonal ``(diag, upper, lower)`` (spec 3.6)."""
-    a = jnp.asarray(element_nodes)
-    diag = jnp.zeros((n_nodes, 6, 6)).at[a].add(k_el[:, :6, :6]).at[a + 1].add(k_el[:, 6:, 6:])
-    upper = jnp.zeros((max(n_nodes - 1, 0), 6, 6)).at[a].set(k_el[:, :6, 6:])
-    lower = jnp.zeros((max(n_nodes - 1, 0), 6, 6)).at[a].set(k_el[:, 6:, :6])
-    return diag, upper, lower
+    a = np.asarray(element_nodes, dtype=int)
+    diag = _placed(n_nodes, a, k_el[:, :6, :6]) + _placed(n_nodes, a + 1, k_el[:, 6:, 6:])
+    n_off = max(n_nodes - 1, 0)
+    return diag, _placed(n_off, a, k_el[:, :6, 6:]), _placed(n_off, a, k_el[:, 6:, :6])
 
 
 def nodal_load_and_tangent(model: Model, lam, R, tangent: str = "closed_form"):
