@@ -35,6 +35,7 @@ import functools
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 
 def block_matvec(blocks, x):
@@ -46,16 +47,19 @@ def block_matvec(blocks, x):
 
 
 def dense(blocks):
-    """The block-tridiagonal matrix as a dense (6N, 6N) array (tests and debugging)."""
+    """The block-tridiagonal matrix as a dense (6N, 6N) array (the dense factorization,
+    tests and debugging): one gather of the blocks by a static (N, N) table of which
+    block (or a zero block) sits where (XLA on CPU would run a scatter as a loop)."""
     diag, upper, lower = blocks
     n = diag.shape[0]
-    K = jnp.zeros((n, 6, n, 6))
-    idx = jnp.arange(n)
-    K = K.at[idx, :, idx, :].set(diag)
-    if n > 1:
-        K = K.at[idx[:-1], :, idx[1:], :].set(upper)
-        K = K.at[idx[1:], :, idx[:-1], :].set(lower)
-    return K.reshape(6 * n, 6 * n)
+    zero = jnp.zeros((1, 6, 6), diag.dtype)
+    stacked = jnp.concatenate([zero, diag, upper, lower])        # 0, 1.., 1+n.., n+n..
+    idx = np.arange(n)
+    which = np.zeros((n, n), dtype=int)
+    which[idx, idx] = 1 + idx
+    which[idx[:-1], idx[1:]] = 1 + n + idx[:-1]
+    which[idx[1:], idx[:-1]] = 2 * n + idx[:-1]
+    return jnp.swapaxes(stacked[which], 1, 2).reshape(6 * n, 6 * n)
 
 
 # Chains of at most this many nodes are solved by a dense LU of the assembled matrix: on
@@ -66,19 +70,23 @@ DENSE_LIMIT_NODES = 12
 
 
 def lu(A):
-    """Partial-pivoting LU of a square matrix: ``(lu, perm)`` with ``A[perm] = L U``.
+    """Partial-pivoting LU of a square matrix: ``(lu, perm)`` with ``A[perm] = L U``;
+    ``lu`` holds ``L`` and ``U`` transposed (``lu.T`` is LAPACK's packed factor).
 
     The row permutation is formed once here: ``jax.scipy.linalg.lu_solve`` rebuilds it
     from LAPACK's pivots at every solve in an n-step loop, which cost more than the two
     triangular solves themselves (66 loop iterations per solve of an 11-node chain).
+    Kept transposed because LAPACK's column-major factor is then stored without a copy
+    and handed back to its triangular solves without one at every solve.
     """
     factors, _, perm = jax.lax.linalg.lu(A)
-    return factors, perm
+    return factors.T, perm
 
 
 def lu_solve(factors, b, transpose=False):
     """Solve ``A x = b`` (or ``A^T x = b``) with ``factors = lu(A)``; b (n,) or (n, k)."""
-    f, perm = factors
+    f_t, perm = factors
+    f = f_t.T
     tri = jax.lax.linalg.triangular_solve
     x = b if b.ndim == 2 else b[:, None]
     if transpose:  # A^T = U^T L^T P: solve U^T, then L^T, then undo the permutation
