@@ -22,6 +22,7 @@ import pytest
 import simsoft_jax as sj
 from conftest import arc
 from simsoft_jax import cli, sweeps
+from simsoft_jax.statics import settings_from_scene
 
 COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
 COUNTS_COMPILATIONS = True   # conftest: start this module with no program in memory
@@ -164,6 +165,21 @@ def test_run_static_and_solve_static_compile_once():
     assert sum(again.values()) == 0, again
     np.testing.assert_allclose(eq.p, arc(0.5, S)[0], rtol=0, atol=1e-9)
     np.testing.assert_allclose(eq2.p, arc(0.25, S)[0], rtol=0, atol=1e-9)
+
+
+def test_run_builds_an_equal_scene_once_and_notices_a_changed_one():
+    """``sj.run`` keeps the built Model of a scene: the same Scene, or an equal dict, reuses
+    it (read-only arrays), with the result of a fresh build's solve; a changed moment or
+    stiffness builds a new model, whose result follows exact pure bending."""
+    scene = sj.Scene.from_dict(cantilever(1.0, 2.0))
+    a, b, c = sj.run(scene), sj.run(scene), sj.run(cantilever(1.0, 2.0))
+    assert b.model is a.model and c.model is a.model and not a.model.p0.flags.writeable
+    fresh = sj.solve_static(sj.build_model(scene), settings_from_scene(scene.solver))
+    np.testing.assert_allclose(b.positions("rod"), np.asarray(fresh.p), rtol=0, atol=1e-12)
+    for d, kappa in ((cantilever(2.0, 2.0), 1.0), (cantilever(1.0, 4.0), 0.25)):
+        r = sj.run(d)
+        assert r.model is not a.model
+        np.testing.assert_allclose(r.positions("rod"), arc(kappa, S)[0], rtol=0, atol=1e-9)
 
 
 def scale_moment(model, q):
