@@ -6,7 +6,8 @@ tolerances) compile nothing, not even the small programs of model building.
 
 Compilations are counted with JAX's monitoring events (one
 ``/jax/core/compile/backend_compile_duration`` event per XLA compilation, or per program
-read from the persistent cache, which the tests' cache folder may serve). The numbers of
+read from the persistent cache, which the tests' cache folder may serve, and one
+``compile_cache.LOADED_EVENT`` per solver program loaded from that folder). The numbers of
 each run are checked against independent references: exact pure bending (statics) and
 the similarity law of dynamics (stiffness, loads and gravity times 4, time halved: the
 same motion twice as fast).
@@ -21,7 +22,7 @@ import pytest
 
 import simsoft_jax as sj
 from conftest import arc
-from simsoft_jax import cli, sweeps
+from simsoft_jax import cli, compile_cache, sweeps
 from simsoft_jax.statics import settings_from_scene
 
 COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
@@ -34,7 +35,7 @@ def compilations():
     names = collections.Counter()
 
     def listen(event, duration, **kwargs):
-        if event == COMPILE_EVENT:
+        if event in (COMPILE_EVENT, compile_cache.LOADED_EVENT):
             names[kwargs.get("fun_name", "?")] += 1
 
     jax.monitoring.register_event_duration_secs_listener(listen)
