@@ -107,8 +107,9 @@ def _assemble(model: Model, outputs, carry, blocks: int, t_end: float, dt: float
               interrupted: bool) -> Trajectory:
     """One host (NumPy) trajectory from the chunks' outputs: the start state, then the
     saved state of each of the first ``blocks`` blocks; cut after a failure."""
+    # the carry without its Newton memory (the reused matrix: large for large models)
     R0, p0, v0, outputs, carry = jax.device_get((model.R0, model.p0, model.v0, outputs,
-                                                 carry))
+                                                 carry._replace(memory=None)))
     t, R, p, v, its, subs, mu = (np.concatenate(x)[:blocks] for x in zip(*outputs))
     time_ = np.concatenate([[0.0], t])
     R, p, v = (np.concatenate([x0[None], x]) for x0, x in ((R0, R), (p0, p), (v0, v)))
