@@ -67,11 +67,11 @@ def _scene_key(scene: Scene) -> bytes | None:
         return None
 
 
-def _models(scene: Scene) -> tuple[Model, Model]:
-    """The Model of ``scene`` with NumPy arrays (read-only) and a copy of it on the default
-    device, built and transferred once per scene content (:func:`model_of`): a compiled
-    program called with NumPy arrays transfers them at every call (~2 ms for the ~70
-    arrays of a helical model)."""
+def model_of(scene: Scene) -> Model:
+    """``build_model(scene, device=False)``, built once per scene content: a later call
+    with a scene equal in every field (the same object, a reload of the same file, or an
+    equal dict) returns the same Model, whose arrays are read-only; any changed number,
+    name or flag builds a new one. The digest costs ~0.1 ms against ~1-4 ms of building."""
     key = _scene_key(scene)
     if key is not None and key in _MODELS:
         return _MODELS[key]
@@ -79,18 +79,9 @@ def _models(scene: Scene) -> tuple[Model, Model]:
     for leaf in jax.tree_util.tree_leaves(model):
         if isinstance(leaf, np.ndarray):
             leaf.setflags(write=False)
-    models = (model, jax.device_put(model))
     if key is not None:
-        _MODELS[key] = models
-    return models
-
-
-def model_of(scene: Scene) -> Model:
-    """``build_model(scene, device=False)``, built once per scene content: a later call
-    with a scene equal in every field (the same object, a reload of the same file, or an
-    equal dict) returns the same Model, whose arrays are read-only; any changed number,
-    name or flag builds a new one. The digest costs ~0.1 ms against ~1-4 ms of building."""
-    return _models(scene)[0]
+        _MODELS[key] = model
+    return model
 
 
 @jit
@@ -322,11 +313,11 @@ class Result:
         return write_atomic(path, lambda fh: np.savez(fh, **arrays), binary=True)
 
 
-def _run_dynamic(scene: Scene, model: Model, on_device: Model, progress=None) -> Result:
+def _run_dynamic(scene: Scene, model: Model, progress=None) -> Result:
     solver = scene.solver
     start = time.perf_counter()
     trajectory, compile_time = rollout(
-        on_device, solver.dt, solver.t_end, solver.rho_inf, solver.save_every,
+        model, solver.dt, solver.t_end, solver.rho_inf, solver.save_every,
         progress=progress, compiled=_COMPILED, tolerance=solver.tolerance,
         max_iterations=solver.max_iterations, tangent=solver.tangent)
     wall = time.perf_counter() - start - compile_time
@@ -353,13 +344,13 @@ def run(scene, progress=None, stability: bool = True) -> Result:
         scene = load_scene(scene)
     elif isinstance(scene, dict):
         scene = Scene.from_dict(scene)
-    model, on_device = _models(scene)  # cached by scene content
+    model = model_of(scene)  # host arrays (the program transfers them), cached by content
     if scene.solver.kind == "dynamic":
-        return _run_dynamic(scene, model, on_device, progress)
+        return _run_dynamic(scene, model, progress)
     settings = settings_from_scene(scene.solver)
-    solver, compile_time = compiled_static_solver(on_device, settings)
+    solver, compile_time = compiled_static_solver(model, settings)
     start = time.perf_counter()
-    equilibrium, count = jax.device_get(solver(on_device, as_traced(settings),
+    equilibrium, count = jax.device_get(solver(model, as_traced(settings),
                                                np.bool_(stability)))
     wall = time.perf_counter() - start
     checked = None if count < 0 else {"negative_eigenvalues": int(count),
