@@ -210,15 +210,21 @@ def _jax_cache_off():
 
 def _compile(jitted, tree, leaves, name: str, path: Path):
     """Trace and compile ``jitted`` over the flattened arguments ``leaves`` (with this
-    package's compile options, not through JAX's cache) and store it at ``path``."""
+    package's compile options) and store it at ``path``. A program that can be stored
+    (its custom calls all in :data:`_LOADABLE_CALLS`) is compiled outside JAX's cache;
+    any other (e.g. GPU solver calls) through it, and not stored."""
     def program(*xs):
         return jax.tree_util.tree_leaves(jitted(*jax.tree_util.tree_unflatten(tree, xs)))
 
     program.__name__ = program.__qualname__ = getattr(jitted, "__name__", name)
     options = compiler_options()
+    lowered = jax.jit(program, **({"compiler_options": options} if options else {})
+                      ).lower(*leaves)
+    calls = set(re.findall(r"custom_call @([\w.]+)", lowered.as_text()))
+    if not all(_LOADABLE_CALLS.fullmatch(c) for c in calls):
+        return lowered.compile()
     with _jax_cache_off():
-        compiled = jax.jit(program, **({"compiler_options": options} if options else {})
-                           ).lower(*leaves).compile()
+        compiled = lowered.compile()
     _store(path, compiled)
     return compiled
 
