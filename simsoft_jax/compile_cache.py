@@ -13,31 +13,45 @@ fresh process compiles while building a model). Where the ``filelock`` package i
 installed (JAX needs it for this), the folder is bounded to ``MAX_BYTES`` (least
 recently used entries dropped); otherwise it grows (each program is 0.1-2 MB).
 
-JAX's cache keeps the compiled code; the Python tracing of the solver (1-2 s of a fresh
-process) would still be paid. :func:`compile_stored` keeps the traced program too
-(``jax.export``, in ``<cache>/traced/``; needs the ``flatbuffers`` package), so a later
-process only reads both back.
+JAX's cache keeps the compiled code, but a hit still pays the Python tracing of the
+solver and its lowering to StableHLO (1-2 s of a fresh process), and reading back a
+program stored as traced StableHLO (``jax.export``) still pays its lowering (~0.4 s)
+and JAX's backend checks (~0.5 s). :func:`compile_stored` keeps the solver programs as
+loadable executables instead (``jax.experimental.serialize_executable``, in
+``<cache>/programs/``, bounded to ``MAX_BYTES / 4``, least recently used dropped), so
+a later process only loads one (~0.3-0.5 s for the helical rollout).
 
 The cache is trusted code: keep it in a folder only you can write to (JAX's warning on
 ``jax.config.update("jax_compilation_cache_dir", ...)``).
 """
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import importlib.util
 import os
+import platform
+import re
+import threading
+import time
 import warnings
 from pathlib import Path
 
 import jax
+import jaxlib
 import numpy as np
+from jax.experimental import serialize_executable
 
+from . import _xla
 from ._xla import compiler_options
 from .output import write_atomic
 
 ENV_DIR = "SIMSOFT_JAX_CACHE_DIR"
 ENV_SWITCH = "SIMSOFT_JAX_CACHE"
+# jax.monitoring duration event of a program loaded from ``<cache>/programs/`` (keyword
+# ``fun_name``, as JAX's compile events), for counters of compiled-or-loaded programs
+LOADED_EVENT = "/simsoft_jax/compile_cache/program_loaded"
 MAX_BYTES = 2 * 1024 ** 3
 
 
@@ -85,58 +99,155 @@ def enable(path=None) -> str | None:
 
 @functools.cache
 def _source_key() -> str:
-    """Hash of this package's source and the jax version: a traced program stored by
-    another version of either is never used."""
+    """Hash of this package's source, the jax and jaxlib versions, the backend (platform,
+    its version, device kind), the compile options asked for (whether this jaxlib takes
+    them follows from its version; probing would compile a program), ``XLA_FLAGS`` and
+    the CPU (machine type and feature flags): a program stored under another of any of
+    them is never loaded."""
     root = Path(__file__).resolve().parent
-    digest = hashlib.sha256(jax.__version__.encode())
+    device = jax.devices()[0]
+    digest = hashlib.sha256(repr((
+        jax.__version__, jaxlib.__version__, device.platform, device.client.platform_version,
+        device.device_kind, sorted(_xla._CANDIDATE.items()),
+        os.environ.get("XLA_FLAGS", ""), platform.machine(), _cpu_flags())).encode())
     for path in sorted(root.rglob("*.py")):
         digest.update(str(path.relative_to(root)).encode() + path.read_bytes())
     return digest.hexdigest()
 
 
-def _read_exported(path: Path):
-    """The stored traced program at ``path``, or None (absent, unreadable, or written by
-    a jax that cannot read it)."""
+def _cpu_flags() -> str:
+    """The CPU's feature flags (Linux ``/proc/cpuinfo``; empty elsewhere): compiled CPU
+    code may use any of them."""
     try:
-        return jax.export.deserialize(bytearray(path.read_bytes()))
-    except Exception:  # noqa: BLE001 -- any failure means: trace it again
+        with open("/proc/cpuinfo", encoding="ascii", errors="replace") as fh:
+            return next((line for line in fh if line.startswith("flags")), "")
+    except OSError:
+        return ""
+
+
+# Custom calls whose targets this module registers before loading a program (JAX
+# registers the LAPACK ones lazily, when it lowers a linear-algebra operation; a loaded
+# program calling an unregistered one would crash the process). A program calling any
+# other custom call is not stored.
+_LOADABLE_CALLS = re.compile(r"lapack_\w+")
+
+
+def _registered_calls() -> bool:
+    """Register the LAPACK custom calls (what lowering a linear solve does); False when
+    this jax has no such hook (then nothing is loaded)."""
+    try:
+        from jax._src.lax import linalg
+        linalg.initialize_lapack()
+    except (ImportError, AttributeError):
+        return False
+    return True
+
+
+def _load(path: Path, leaves, outputs: int, name: str):
+    """The stored executable at ``path`` for arguments ``leaves`` with ``outputs``
+    results, or None (absent, unreadable, or unloadable here). The custom calls are
+    registered on a second thread while the executable loads (the registration imports
+    SciPy's LAPACK, ~0.2 s; the loading runs outside the interpreter lock)."""
+    if not path.is_file():
         return None
+    start = time.perf_counter()
+    registered = []
+    thread = threading.Thread(target=lambda: registered.append(_registered_calls()))
+    thread.start()
+    try:
+        in_tree = jax.tree_util.tree_structure((tuple(leaves), {}))
+        out_tree = jax.tree_util.tree_structure([0] * outputs)
+        compiled = serialize_executable.deserialize_and_load(path.read_bytes(), in_tree,
+                                                              out_tree)
+    except Exception:  # noqa: BLE001 -- any failure means: compile it again
+        compiled = None
+    thread.join()
+    if compiled is None or not registered[0]:
+        return None
+    os.utime(path)   # recently used
+    jax.monitoring.record_event_duration_secs(LOADED_EVENT, time.perf_counter() - start,
+                                              fun_name=f"jit({name})")
+    return compiled
+
+
+def _store(path: Path, compiled) -> None:
+    """Write ``compiled`` to ``path`` when it can be loaded again (see
+    :data:`_LOADABLE_CALLS`), then drop the least recently used programs beyond
+    ``MAX_BYTES / 4``. A read-only cache or an unserializable program: nothing stored."""
+    calls = set(re.findall(r'custom_call_target="([^"]+)"', compiled.as_text() or ""))
+    if not all(_LOADABLE_CALLS.fullmatch(c) for c in calls):
+        return
+    try:
+        blob = serialize_executable.serialize(compiled)[0]
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_atomic(path, lambda fh: fh.write(blob), binary=True)
+        stored = sorted(path.parent.glob("*.xla"), key=lambda f: f.stat().st_mtime)
+        total = sum(f.stat().st_size for f in stored)
+        for old in stored[:-1]:
+            if total <= MAX_BYTES // 4:
+                break
+            total -= old.stat().st_size
+            old.unlink()
+    except (OSError, ValueError, NotImplementedError):
+        pass
+
+
+@contextlib.contextmanager
+def _jax_cache_off():
+    """JAX's own persistent cache off inside the block: a program read from it serializes
+    without its compiled functions (loading that again fails), and a program stored
+    here need not be kept twice."""
+    from jax.experimental.compilation_cache import compilation_cache
+    before = jax.config.jax_enable_compilation_cache
+    jax.config.update("jax_enable_compilation_cache", False)
+    compilation_cache.reset_cache()   # JAX decides once whether to use it
+    try:
+        yield
+    finally:
+        jax.config.update("jax_enable_compilation_cache", before)
+        compilation_cache.reset_cache()
+
+
+def _compile(jitted, tree, leaves, name: str, path: Path):
+    """Trace and compile ``jitted`` over the flattened arguments ``leaves`` (with this
+    package's compile options) and store it at ``path``. A program that can be stored
+    (its custom calls all in :data:`_LOADABLE_CALLS`) is compiled outside JAX's cache;
+    any other (e.g. GPU solver calls) through it, and not stored."""
+    def program(*xs):
+        return jax.tree_util.tree_leaves(jitted(*jax.tree_util.tree_unflatten(tree, xs)))
+
+    program.__name__ = program.__qualname__ = getattr(jitted, "__name__", name)
+    options = compiler_options()
+    lowered = jax.jit(program, **({"compiler_options": options} if options else {})
+                      ).lower(*leaves)
+    calls = set(re.findall(r"custom_call @([\w.]+)", lowered.as_text()))
+    if not all(_LOADABLE_CALLS.fullmatch(c) for c in calls):
+        return lowered.compile()
+    with _jax_cache_off():
+        compiled = lowered.compile()
+    _store(path, compiled)
+    return compiled
 
 
 def compile_stored(jitted, args: tuple, out_tree, name: str):
-    """``jitted.lower(*args).compile()`` that skips the Python tracing in later processes.
+    """``jitted.lower(*args).compile()`` that later processes load instead of tracing and
+    compiling again.
 
-    With the cache on (and the ``flatbuffers`` package that JAX needs to serialize), the
-    traced program (``jax.export``) is kept in ``<cache>/traced/`` under a hash of its
-    argument structure (pytree, shapes, dtypes), this package's source and the jax
-    version; a later process reads it back and compiles it, and the compilation itself
-    comes from the persistent cache. ``out_tree``: the pytree structure of the outputs.
-    Returns a callable with ``jitted``'s signature.
+    With the cache on, the compiled program (over the flattened arguments) is kept in
+    ``<cache>/programs/`` under a hash of its argument structure (pytree, shapes,
+    dtypes), this package's source and the machine (:func:`_source_key`); a later
+    process loads it. ``out_tree``: the pytree structure of the outputs. Returns a
+    callable with ``jitted``'s signature.
     """
     folder = jax.config.jax_compilation_cache_dir
-    if not folder or importlib.util.find_spec("flatbuffers") is None:
+    if not folder:
         return jitted.lower(*args).compile()
     leaves, tree = jax.tree_util.tree_flatten(args)
     signature = repr((name, tree, [(np.shape(x), str(x.dtype if hasattr(x, "dtype") else np.result_type(x)),
                                     bool(getattr(x, "weak_type", False))) for x in leaves]))
     key = hashlib.sha256((signature + _source_key()).encode()).hexdigest()[:40]
-    path = Path(folder) / "traced" / f"{name}-{key}.jaxexport"
-    exported = _read_exported(path)
-    if exported is None:
-        flat = jax.jit(lambda *xs: jax.tree_util.tree_leaves(
-            jitted(*jax.tree_util.tree_unflatten(tree, xs))))
-        exported = jax.export.export(flat)(*leaves)
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            write_atomic(path, lambda fh: fh.write(exported.serialize()), binary=True)
-        except OSError:
-            pass  # a read-only cache: compile without storing
-    def program(*xs):
-        return exported.call(*xs)
-
-    program.__name__ = program.__qualname__ = getattr(jitted, "__name__", name)
-    options = compiler_options()
-    compiled = jax.jit(program, **({"compiler_options": options} if options else {})
-                       ).lower(*leaves).compile()
+    path = Path(folder) / "programs" / f"{name}-{key}.xla"
+    compiled = (_load(path, leaves, out_tree.num_leaves, name)
+                or _compile(jitted, tree, leaves, name, path))
     return lambda *a: jax.tree_util.tree_unflatten(
         out_tree, compiled(*jax.tree_util.tree_leaves(a)))

@@ -56,6 +56,61 @@ def _exp_se3_np(xi):
     return E
 
 
+def _atan_ratio(s, c):
+    """``atan2(s, c) / s`` for ``s >= 0`` (elementwise), safe at ``s = 0``: the series
+    ``(1 - y/3 + y^2/5 - ...) / c`` in ``y = s^2/c^2`` where ``s < 0.1 c`` (12 terms: below
+    1e-24 relative)."""
+    small = s * s < 0.01 * c * c
+    y = np.where(small, s * s / np.where(small, c * c, 1.0), 0.0)
+    series = np.zeros_like(y)
+    for k in reversed(range(12)):
+        series = series * y + (-1.0) ** k / (2 * k + 1)
+    s_safe = np.where(small, 1.0, s)
+    return np.where(small, series / np.where(small, c, 1.0), np.arctan2(s_safe, c) / s_safe)
+
+
+def log_se3_np(R, p):
+    """NumPy SE(3) logarithm of poses ``(R, p)`` (..., 3, 3), (..., 3): twists
+    ``[T_SO3^-T(w) p; w]`` (..., 6) (seed eq. 126, spec S13, S15), ``w`` of angle in
+    [0, pi] from the unit quaternion (Shepperd's pivot: the largest of the trace and the
+    diagonal), ``T_SO3^-T(w) = I - W/2 + g2 W^2`` with ``g2 = (1 - (phi/2) cot(phi/2)) /
+    phi^2`` (spec S6; its series below phi = 1 rad, spec S24). Used once per model build
+    (the reference twists), where a compiled program would cost more than it saves."""
+    R, p = np.asarray(R, float), np.asarray(p, float)
+    tr = np.trace(R, axis1=-2, axis2=-1)
+    a = lambda i, j: R[..., i, j]  # noqa: E731
+    candidates = np.stack([
+        np.stack([1.0 + tr, a(2, 1) - a(1, 2), a(0, 2) - a(2, 0), a(1, 0) - a(0, 1)], -1),
+        np.stack([a(2, 1) - a(1, 2), 1.0 + 2 * a(0, 0) - tr, a(0, 1) + a(1, 0),
+                  a(0, 2) + a(2, 0)], -1),
+        np.stack([a(0, 2) - a(2, 0), a(0, 1) + a(1, 0), 1.0 + 2 * a(1, 1) - tr,
+                  a(1, 2) + a(2, 1)], -1),
+        np.stack([a(1, 0) - a(0, 1), a(0, 2) + a(2, 0), a(1, 2) + a(2, 1),
+                  1.0 + 2 * a(2, 2) - tr], -1)], -2)
+    pivot = np.argmax(np.stack([tr, a(0, 0), a(1, 1), a(2, 2)], -1), axis=-1)
+    q = np.take_along_axis(candidates, pivot[..., None, None], axis=-2)[..., 0, :]
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    q = np.where(q[..., :1] < 0, -q, q)
+    s = np.linalg.norm(q[..., 1:], axis=-1)
+    w = (2.0 * _atan_ratio(s, q[..., 0]))[..., None] * q[..., 1:]
+    x = np.sum(w * w, axis=-1)
+    small = x < 1.0
+    g2_series = np.polynomial.polynomial.polyval(x, _G2_SERIES)
+    phi = np.sqrt(np.where(small, 1.0, x))
+    g2 = np.where(small, g2_series,
+                  (1.0 - 0.5 * phi / np.tan(0.5 * phi)) / np.where(small, 1.0, x))
+    Wp = np.cross(w, p)
+    U = p - 0.5 * Wp + g2[..., None] * np.cross(w, Wp)
+    return np.concatenate([U, w], axis=-1)
+
+
+# Taylor coefficients of g2 = (1 - (phi/2) cot(phi/2)) / phi^2 in x = phi^2 (Bernoulli
+# numbers: 1/12, 1/720, 1/30240, ...; spec S6 table)
+_G2_SERIES = np.array([1 / 12, 1 / 720, 1 / 30240, 1 / 1209600, 1 / 47900160,
+                       691 / 1307674368000, 1 / 74724249600, 3617 / 10670622842880000,
+                       43867 / 5109094217170944000, 174611 / 802857662698291200000])
+
+
 def constant_strain_frames(strain, length, fractions):
     """Frames ``exp(s_i f0)`` at ``s_i = u_i L`` (spec S25 with constant f)."""
     s = np.asarray(fractions, float) * length

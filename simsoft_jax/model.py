@@ -26,7 +26,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import geometry as geom
-from . import lie
 from .actuator_tables import chamber_arrays, check_crossings, tendon_arrays
 from .joint_layout import layout as joint_layout
 from .loads import LoadChannels, TimeLaws, build_channels, build_laws
@@ -300,15 +299,12 @@ def _initial_frames(rod, R_ref, p_ref):
     return np.einsum("ij,njk->nik", Rb, R), pb + p @ Rb.T
 
 
-@jax.jit
-def _consecutive_twists(R, p):
-    return jax.vmap(lambda RA, pA, RB, pB: lie.log_se3(lie.relative_pose(RA, pA, RB, pB)))(
-        R[:-1], p[:-1], R[1:], p[1:])
-
-
 def _reference_twists(R, p):
-    """``d0_e = log(H_e^-1 H_e+1)`` for consecutive frames (spec S34), (n,6)."""
-    return np.asarray(_consecutive_twists(R, p))
+    """``d0_e = log(H_e^-1 H_e+1)`` for consecutive frames (spec S34), (n,6): NumPy
+    (:func:`~simsoft_jax.geometry.log_se3_np`), no compiled program."""
+    R, p = np.asarray(R, float), np.asarray(p, float)
+    Rt = np.swapaxes(R[:-1], -1, -2)
+    return geom.log_se3_np(Rt @ R[1:], np.einsum("nij,nj->ni", Rt, p[1:] - p[:-1]))
 
 
 def _check_held(scene, frames, rods) -> set:

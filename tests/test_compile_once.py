@@ -6,7 +6,8 @@ tolerances) compile nothing, not even the small programs of model building.
 
 Compilations are counted with JAX's monitoring events (one
 ``/jax/core/compile/backend_compile_duration`` event per XLA compilation, or per program
-read from the persistent cache, which the tests' cache folder may serve). The numbers of
+read from the persistent cache, which the tests' cache folder may serve, and one
+``compile_cache.LOADED_EVENT`` per solver program loaded from that folder). The numbers of
 each run are checked against independent references: exact pure bending (statics) and
 the similarity law of dynamics (stiffness, loads and gravity times 4, time halved: the
 same motion twice as fast).
@@ -21,7 +22,8 @@ import pytest
 
 import simsoft_jax as sj
 from conftest import arc
-from simsoft_jax import cli, sweeps
+from simsoft_jax import cli, compile_cache, sweeps
+from simsoft_jax.statics import settings_from_scene
 
 COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
 COUNTS_COMPILATIONS = True   # conftest: start this module with no program in memory
@@ -33,7 +35,7 @@ def compilations():
     names = collections.Counter()
 
     def listen(event, duration, **kwargs):
-        if event == COMPILE_EVENT:
+        if event in (COMPILE_EVENT, compile_cache.LOADED_EVENT):
             names[kwargs.get("fun_name", "?")] += 1
 
     jax.monitoring.register_event_duration_secs_listener(listen)
@@ -64,13 +66,14 @@ def pendulum(scale=1.0, t_end=0.05, dt=0.01):
 
 
 def test_run_dynamic_compiles_once_per_structure():
-    """The pendulum of the issue: the first run compiles one solver program; runs with
-    other stiffness, gravity, load, time law, dt and t_end compile nothing, and follow
-    the similarity law to round-off."""
+    """The pendulum of the issue: the first run compiles one solver program and nothing
+    else; runs with other stiffness, gravity, load, time law, dt and t_end compile
+    nothing, and follow the similarity law to round-off."""
     with compilations() as first:
         base = sj.run(pendulum())
     assert first["jit(_chunk)"] == 1
-    assert not any("simulate" in name or "initial_state" in name for name in first)
+    # nothing else: model building is NumPy (the compile-option probe, once per process)
+    assert set(first) <= {"jit(_chunk)", "jit(<lambda>)"} and first["jit(<lambda>)"] <= 1, first
     with compilations() as again:
         fast = sj.run(pendulum(scale=4.0))
         longer = sj.run(pendulum(t_end=0.033))        # t_end/dt = 3.3: a closing block
@@ -164,6 +167,21 @@ def test_run_static_and_solve_static_compile_once():
     assert sum(again.values()) == 0, again
     np.testing.assert_allclose(eq.p, arc(0.5, S)[0], rtol=0, atol=1e-9)
     np.testing.assert_allclose(eq2.p, arc(0.25, S)[0], rtol=0, atol=1e-9)
+
+
+def test_run_builds_an_equal_scene_once_and_notices_a_changed_one():
+    """``sj.run`` keeps the built Model of a scene: the same Scene, or an equal dict, reuses
+    it (read-only arrays), with the result of a fresh build's solve; a changed moment or
+    stiffness builds a new model, whose result follows exact pure bending."""
+    scene = sj.Scene.from_dict(cantilever(1.0, 2.0))
+    a, b, c = sj.run(scene), sj.run(scene), sj.run(cantilever(1.0, 2.0))
+    assert b.model is a.model and c.model is a.model and not a.model.p0.flags.writeable
+    fresh = sj.solve_static(sj.build_model(scene), settings_from_scene(scene.solver))
+    np.testing.assert_allclose(b.positions("rod"), np.asarray(fresh.p), rtol=0, atol=1e-12)
+    for d, kappa in ((cantilever(2.0, 2.0), 1.0), (cantilever(1.0, 4.0), 0.25)):
+        r = sj.run(d)
+        assert r.model is not a.model
+        np.testing.assert_allclose(r.positions("rod"), arc(kappa, S)[0], rtol=0, atol=1e-9)
 
 
 def scale_moment(model, q):

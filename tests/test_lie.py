@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 import simsoft_jax  # noqa: F401  (enables float64)
 import jax
 import jax.numpy as jnp
-from simsoft_jax import lie
+from simsoft_jax import geometry, lie
 
 LD = np.longdouble
 
@@ -223,6 +223,19 @@ def _exact_pi_rotations():
     for v in ([1, 1, 0], [1, -2, 3]):
         n = np.asarray(v, float) / np.linalg.norm(v)
         yield 2 * np.outer(n, n) - np.eye(3)
+
+
+def test_numpy_log_se3_inverts_the_reference_exponential():
+    """geometry.log_se3_np (the host logarithm of model building) is the logarithm: of the
+    correctly rounded exp of twists at angles from 0 through the series switch (1 rad)
+    to near pi, in one batch, it returns the twists."""
+    r = np.random.default_rng(11)
+    angles = [0.0, 1e-9, 1e-4, 0.3, 0.999, 1.001, 2.0, pi - 1e-3, pi - 1e-6]
+    x = np.array([np.r_[r.normal(size=3), a * unit(3, r)] for a in angles])
+    E = np.stack([f64(np_expm(np_hat(xi))) for xi in x])
+    y = geometry.log_se3_np(E[:, :3, :3], E[:, :3, 3])
+    for xi, yi, a in zip(x, y, angles):
+        np.testing.assert_allclose(yi, xi, rtol=0, atol=(1e-12 if a > 3 else 1e-13) * scale(xi))
 
 
 def test_exp_log_random_quaternions_and_pi():

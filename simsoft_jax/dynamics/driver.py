@@ -5,7 +5,7 @@ The program computes the start state (spec S67-S68) at its first call and advanc
 ``CHUNK_STEPS`` steps' worth of save blocks (``save_every`` steps each); the step size of
 every block is an input, so any ``dt`` and ``t_end`` (and the shorter closing block that
 ends a run exactly at ``t_end``) reuse it: it is compiled once per model structure and
-integer settings. Chunks are queued without waiting (JAX dispatches asynchronously), so
+integer settings. The blocks that pad the last chunk to full length are not run. Chunks are queued without waiting (JAX dispatches asynchronously), so
 the device never waits for the host; with a ``progress`` function the host reads each
 chunk's end time while the next one runs. Blocks after a failed step are skipped. The
 results are copied to the host once, at the end, and assembled with NumPy. A
@@ -65,25 +65,33 @@ def block_steps(dt: float, t_end: float, save_every: int) -> tuple[np.ndarray, i
 
 @jit
 def _chunk(model: Model, settings: DynamicSettings, carry, h, fresh):
-    """Save blocks of step sizes ``h`` (B,) (0: an unused block, skipped) from ``carry``,
-    or from the start state of ``model`` when ``fresh``. Returns the carry at the end and
-    per block ``(t, R, p, v, iterations (B, save_every), substeps (B, save_every),
-    multipliers)``."""
+    """Save blocks of step sizes ``h`` (B,) from ``carry``, or from the start state of
+    ``model`` when ``fresh``; trailing blocks of size 0 (the padding of the last chunk)
+    are not run. Returns the carry at the end and per block ``(t, R, p, v, iterations
+    (B, save_every), substeps (B, save_every), multipliers)`` (zeros for blocks not
+    run)."""
     inert = element_inertia(model)
     carry = jax.lax.cond(fresh, lambda c: first_carry(model, initial_state(model, 0.0, inert)),
                          lambda c: c, carry)
 
-    def block(c, h_block):
-        # a step of size 0 does nothing (no Newton iteration): unused blocks, and every
-        # block after a failure
-        h_block = jnp.where(c.failed, 0.0, h_block)
+    def block(i, c_out):
+        c, out = c_out
+        # a step of size 0 does nothing (no Newton iteration): every block after a failure
+        h_block = jnp.where(c.failed, 0.0, h[i])
         step = stepper(model, inert, settings.replace(dt=h_block), False)
         c, (its, subs) = jax.lax.scan(step, c, None, length=settings.save_every)
         st = c.state
-        return c, (st.t, st.R, st.p, st.v, its.astype(jnp.int32), subs.astype(jnp.int32),
-                   c.memory.multipliers)
+        saved = (st.t, st.R, st.p, st.v, its.astype(jnp.int32), subs.astype(jnp.int32),
+                 c.memory.multipliers)
+        return c, tuple(o.at[i].set(x) for o, x in zip(out, saved))
 
-    return jax.lax.scan(block, carry, h)
+    st, n, k = carry.state, h.shape[0], settings.save_every
+    out = (jnp.zeros(n, st.t.dtype), jnp.zeros((n,) + st.R.shape, st.R.dtype),
+           jnp.zeros((n,) + st.p.shape, st.p.dtype), jnp.zeros((n,) + st.v.shape, st.v.dtype),
+           jnp.zeros((n, k), jnp.int32), jnp.zeros((n, k), jnp.int32),
+           jnp.zeros((n,) + carry.memory.multipliers.shape, carry.memory.multipliers.dtype))
+    # padding (h = 0) only follows the run's blocks: run the leading nonzero ones
+    return jax.lax.fori_loop(0, jnp.count_nonzero(h), block, (carry, out))
 
 
 def _placeholder_carry(model: Model):
@@ -99,8 +107,9 @@ def _assemble(model: Model, outputs, carry, blocks: int, t_end: float, dt: float
               interrupted: bool) -> Trajectory:
     """One host (NumPy) trajectory from the chunks' outputs: the start state, then the
     saved state of each of the first ``blocks`` blocks; cut after a failure."""
+    # the carry without its Newton memory (the reused matrix: large for large models)
     R0, p0, v0, outputs, carry = jax.device_get((model.R0, model.p0, model.v0, outputs,
-                                                 carry))
+                                                 carry._replace(memory=None)))
     t, R, p, v, its, subs, mu = (np.concatenate(x)[:blocks] for x in zip(*outputs))
     time_ = np.concatenate([[0.0], t])
     R, p, v = (np.concatenate([x0[None], x]) for x0, x in ((R0, R), (p0, p), (v0, v)))
