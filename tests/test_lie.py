@@ -14,10 +14,9 @@ import pytest
 from scipy.linalg import expm as scipy_expm
 from scipy.spatial.transform import Rotation
 
-import simsoft_jax  # noqa: F401  (enables float64)
 import jax
 import jax.numpy as jnp
-from simsoft_jax import geometry, lie
+from simsoft_jax import geometry, lie  # importing the package enables float64
 
 LD = np.longdouble
 
