@@ -40,7 +40,8 @@ from .sharding import (batch_mesh, gather_processes, process_share, sharded_map,
                        use_host_devices)
 from .statics import Equilibrium, StaticSettings, as_traced, equilibrium, solve_static
 
-__all__ = ["DYNAMIC_CHUNK", "FLAT_FROM", "STATIC_CHUNK", "WARM_ATTEMPTS", "batch_mesh", "dynamic_sweep",
+__all__ = ["DYNAMIC_CHUNK", "FLAT_FROM", "STATIC_CHUNK", "WARM_ATTEMPTS", "WARM_ITERATIONS",
+           "batch_mesh", "dynamic_sweep",
            "gather_processes", "grid", "process_share", "static_sweep", "use_host_devices"]
 
 
@@ -106,9 +107,13 @@ def _static_warm(model, points, vary, settings):
     return jax.lax.scan(step, (model.R0, model.p0), points)[1]
 
 
-# A warm start that needs more load steps than this is too far from the previous point: a
-# solve from the reference shape with the full continuation is cheaper than halving on.
+# A warm start that needs more load steps than WARM_ATTEMPTS, or more Newton steps than
+# WARM_ITERATIONS at one load level, is too far from the previous point: a solve from the
+# reference shape with the full continuation is cheaper than halving on (a 6-element
+# strip whose tip force jumps from 2 to 8 N: 50 Newton steps before the first halving and
+# 70 in all warm, 28 before giving up with 12 steps a level, 19 cold).
 WARM_ATTEMPTS = 3
+WARM_ITERATIONS = 12
 
 # Points solved together (jax.vmap) on one device, chosen from measurements
 # (benchmarks/README.md, "Batched sweeps"): static solves gain from small vmapped chunks
@@ -151,7 +156,8 @@ def static_sweep(model: Model, vary: Callable, points: dict,
     ``warm_start=True`` solves the points one after the other (``lax.scan``), each from
     the equilibrium of the previous converged point with its full load at once
     (``load_steps=1``; a failing step is still halved by the continuation, at most
-    ``WARM_ATTEMPTS`` load steps in all, after which the point counts as failed): a natural
+    ``WARM_ATTEMPTS`` load steps in all and ``WARM_ITERATIONS`` Newton steps per load
+    step, after which the point counts as failed): a natural
     continuation along the sweep, a few Newton iterations per point when neighbouring
     points are close (order them so: :func:`grid` varies its last axis fastest). On a
     multistable problem it may follow a different branch than a solve from the
@@ -163,8 +169,9 @@ def static_sweep(model: Model, vary: Callable, points: dict,
     chunk, mesh = _chunk(chunk, STATIC_CHUNK), batch_mesh(devices)
     if not warm_start:
         return _static(model, points, vary, as_traced(settings), chunk, mesh)
-    eq = _static_warm(model, points, vary,
-                      settings.replace(load_steps=1, max_attempts=WARM_ATTEMPTS))
+    eq = _static_warm(model, points, vary, settings.replace(
+        load_steps=1, max_attempts=WARM_ATTEMPTS,
+        max_iterations=min(settings.max_iterations, WARM_ITERATIONS)))
     failed = np.flatnonzero(~np.asarray(eq.converged))
     if failed.size:       # too far from the previous point: solve those from the reference
         cold = _static(model, {name: value[failed] for name, value in points.items()},
