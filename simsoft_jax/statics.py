@@ -34,14 +34,12 @@ from .status import Status, describe, raise_if_failed
 class StaticSettings:
     """Solver settings. Floats are traced (changing them never recompiles); the integers
     (max_iterations, load_steps, max_attempts, line_search_steps) are static structure.
-    ``level_tolerance=0, max_load_step=1/load_steps, level_iterations=max_iterations`` is
-    the continuation of before issue 16 (every level to ``tolerance``, at least
-    ``load_steps`` levels).
+    ``level_tolerance=0, max_load_step=1/load_steps`` is the continuation of before
+    issue 16 (every level to ``tolerance``, at least ``load_steps`` levels).
 
     tolerance: converged when the weighted residual norm is below ``tolerance`` times the
       load scale (forces in N, moments divided by the model's ``char_length``).
-    max_iterations: Newton iterations per load step before the step is halved (see
-      ``level_iterations`` for the intermediate levels).
+    max_iterations: Newton iterations per load step before the step is halved.
     load_steps: the first load increment of the continuation is ``1/load_steps`` of the
       full loads; increments are halved on failure down to ``min_step_fraction`` of it,
       and grow by 1.5 after easy steps (fewer than 5 Newton steps) up to
@@ -56,11 +54,6 @@ class StaticSettings:
       Newton steps without changing the equilibrium at the full loads (benchmarks/README.md,
       "Batched sweeps"). Values below ``tolerance`` act as ``tolerance``; with quasi-static
       friction every level is solved to ``tolerance``.
-    level_iterations: Newton iterations allowed at an intermediate load level before its
-      increment is halved (at most ``max_iterations``; the last level gets
-      ``max_iterations``; with quasi-static friction every level does). A level that has
-      not converged in a few steps is usually one whose increment is too large: stiff
-      axial terms (the "inextensible" elastica) spent 50 steps on each such failure.
     max_attempts: cap on load steps tried (accepted or not) in one solve.
     max_rotation_step: cap (rad) on the nodal rotation of one Newton update (spec 4.7.6).
     line_search_steps, max_step_growth: a trial state is rejected (and the step from the
@@ -87,7 +80,6 @@ class StaticSettings:
     max_step_growth: float = 4.0
     max_load_step: float = 1.0
     level_tolerance: float = 1e-3
-    level_iterations: float = 12.0
     tangent: str = "closed_form"
 
     def __post_init__(self):
@@ -254,15 +246,6 @@ def level_tolerance(model: Model, settings: StaticSettings):
     return jnp.maximum(settings.level_tolerance, settings.tolerance)
 
 
-def level_iterations(model: Model, settings: StaticSettings, lam):
-    """The Newton steps allowed at load level ``lam`` (see :class:`StaticSettings`)."""
-    if model.structure.has_friction:
-        return settings.max_iterations
-    return jnp.where(lam < 1.0,
-                     jnp.minimum(settings.level_iterations, settings.max_iterations),
-                     settings.max_iterations)
-
-
 def max_load_step(model: Model, settings: StaticSettings):
     """The largest load increment of the continuation (see :class:`StaticSettings`)."""
     first = 1.0 / settings.load_steps
@@ -315,8 +298,7 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: _NewtonStat
     nonfinite = ~finite & (exhausted | ~jnp.isfinite(c.size_base))
     status = jnp.where(converged | stalled, Status.CONVERGED, _RUNNING)
     status = jnp.where(nonfinite, Status.NONFINITE, status)
-    allowed = level_iterations(model, settings, lam)
-    status = jnp.where((status == _RUNNING) & (iterations > allowed),
+    status = jnp.where((status == _RUNNING) & (iterations > settings.max_iterations),
                        Status.MAX_ITERATIONS, status)
     status = jnp.where((status == _RUNNING) & ~jnp.all(jnp.isfinite(trial_p)),
                        Status.NONFINITE, status)
