@@ -16,8 +16,9 @@ function, not a new lambda per call) to reuse it::
     points = sweeps.grid(theta=np.linspace(0, 90, 40), load=np.linspace(2, 18, 25))
     eq = sweeps.static_sweep(model, vary, points)      # eq.p: (1000, N, 3)
 
-Every point runs the same Newton iterations as a single solve. Static points are vmapped
-in small chunks (``STATIC_CHUNK``); large chunks use the flat continuation of
+Every point runs the same Newton iterations as a single solve. Static points run one
+after the other on each device by default (``STATIC_CHUNK`` = 1; a larger chunk vmaps
+that many); large chunks use the flat continuation of
 :mod:`simsoft_jax.batched` (one loop of Newton passes, so a vmapped chunk runs as long
 as its longest solve, not the sum of per-level maxima). Dynamic points run one after the
 other on each device by default (``DYNAMIC_CHUNK``). What was
@@ -116,7 +117,7 @@ WARM_ATTEMPTS = 3
 WARM_ITERATIONS = 12
 
 # Points solved together (jax.vmap) on one device, chosen from measurements
-# (benchmarks/README.md, "Batched sweeps"): static solves gain from small vmapped chunks
+# (benchmarks/README.md, "Batched sweeps"): static solves gained from small vmapped chunks
 # (CPU time per scene, random Princeton cases: chunk 8 0.6x a single solve, 32: 0.68x,
 # 96: 0.76x); from FLAT_FROM points per chunk on (large batches, e.g. on a GPU) the flat
 # continuation of simsoft_jax.batched is used, whose cost does not grow with the chunk
@@ -124,9 +125,10 @@ WARM_ITERATIONS = 12
 # modified-Newton matrix rebuilds and iteration counts differ per step and a vmapped batch
 # pays the union: 2.4x a single rollout per scene at chunk 8), so they run one after the
 # other on each device. After the loose intermediate load levels of the static solver
-# (fewer, more even Newton passes per case) chunk 8 costs 0.65x the sequential loop per
-# case, chunks 1-8 within the noise of a loaded machine; kept.
-STATIC_CHUNK = 8
+# (fewer, more even Newton passes per case) vmapping no longer pays for statics either:
+# CPU ms per Princeton case on one device, 400 cases, load 1.3-2: chunk 1 (lax.map, one
+# after the other) 3.8-3.9, chunk 4 4.5-5.9, 8 4.6-4.7, 16 6.5-7.3; flat chunk 8 4.5-4.9.
+STATIC_CHUNK = 1
 FLAT_FROM = 64
 DYNAMIC_CHUNK = 1
 
@@ -151,7 +153,8 @@ def static_sweep(model: Model, vary: Callable, points: dict,
 
     The points are split over ``devices`` (default: every local device, see
     :func:`simsoft_jax.sharding.batch_mesh` and :func:`use_host_devices` for CPU cores)
-    and solved on each device ``chunk`` at a time (default ``STATIC_CHUNK``), vmapped;
+    and solved on each device ``chunk`` at a time, vmapped (default ``STATIC_CHUNK`` = 1:
+    one after the other);
     chunks of ``FLAT_FROM`` points or more use the flat continuation of
     :mod:`simsoft_jax.batched` (same results, a cost that does not grow with the chunk).
 
