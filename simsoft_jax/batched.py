@@ -69,8 +69,8 @@ def flat_continuation(model: Model, settings: StaticSettings) -> Equilibrium:
                              select(f.starting, newton_start(Rs, ps, ys), f.newton),
                              (f.cont.R, f.cont.p))
         ended = newton.status != _RUNNING
-        cont = select(ended, after_newton(settings, f.cont, lam, *newton_outcome(newton)),
-                      f.cont)
+        cont = select(ended, after_newton(model, settings, f.cont, lam,
+                                          *newton_outcome(newton)), f.cont)
         return _FlatState(cont, newton, lam, ended, ~continuing(settings, cont))
 
     cont = continuation_start(model, settings)

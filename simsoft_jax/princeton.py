@@ -158,9 +158,9 @@ def replay(theta_deg=None, load_N=None, elements: int = 16, gravity: bool = True
     stations: r_i / L (default 0.25, 0.5, 0.75, 1). relative: subtract the self-weight
     deflection of each angle (needs ``gravity``; the self-weight states are solved in
     the same call). stiffness: optional section diagonal (see :func:`scene`). chunk,
-    warm_start: as in :func:`simsoft_jax.sweeps.static_sweep` (default: vmapped chunks of
-    cases on every local device; ``warm_start`` solves them in the given order, each from
-    the previous equilibrium).
+    warm_start: as in :func:`simsoft_jax.sweeps.static_sweep` (default: the cases one
+    after the other on every local device; ``warm_start`` solves them in the given
+    order, each from the previous equilibrium).
     """
     if theta_deg is None and load_N is None:
         theta_deg, load_N = seed_cases()

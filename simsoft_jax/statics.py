@@ -34,13 +34,26 @@ from .status import Status, describe, raise_if_failed
 class StaticSettings:
     """Solver settings. Floats are traced (changing them never recompiles); the integers
     (max_iterations, load_steps, max_attempts, line_search_steps) are static structure.
+    ``level_tolerance=0, max_load_step=1/load_steps`` is the continuation of before
+    issue 16 (every level to ``tolerance``, at least ``load_steps`` levels).
 
     tolerance: converged when the weighted residual norm is below ``tolerance`` times the
       load scale (forces in N, moments divided by the model's ``char_length``).
     max_iterations: Newton iterations per load step before the step is halved.
-    load_steps: minimum number of continuation steps (the largest load increment is
-      ``1/load_steps``; increments are halved on failure down to ``min_step_fraction`` of it,
-      and grow back by 1.5 after easy steps).
+    load_steps: the first load increment of the continuation is ``1/load_steps`` of the
+      full loads; increments are halved on failure down to ``min_step_fraction`` of it,
+      and grow by 1.5 after easy steps (fewer than 5 Newton steps) up to
+      ``max_load_step``.
+    max_load_step: the largest load increment (fraction of the full loads) the
+      continuation grows to. With quasi-static friction (a load-path-dependent state) the
+      cap is ``1/load_steps`` whatever this is, so such a solve takes at least
+      ``load_steps`` increments.
+    level_tolerance: the tolerance (as ``tolerance``) of the intermediate load levels
+      (lam < 1); the last level (lam = 1) is always solved to ``tolerance``. Intermediate
+      levels only start the next one (secant predictor), so a loose tolerance there saves
+      Newton steps without changing the equilibrium at the full loads (benchmarks/README.md,
+      "Batched sweeps"). Values below ``tolerance`` act as ``tolerance``; with quasi-static
+      friction every level is solved to ``tolerance``.
     max_attempts: cap on load steps tried (accepted or not) in one solve.
     max_rotation_step: cap (rad) on the nodal rotation of one Newton update (spec 4.7.6).
     line_search_steps, max_step_growth: a trial state is rejected (and the step from the
@@ -65,6 +78,8 @@ class StaticSettings:
     step_tolerance: float = 1e-11
     stagnation_level: float = 1e-6
     max_step_growth: float = 4.0
+    max_load_step: float = 1.0
+    level_tolerance: float = 1e-3
     tangent: str = "closed_form"
 
     def __post_init__(self):
@@ -224,13 +239,28 @@ class _NewtonState(NamedTuple):
 _RUNNING = -1
 
 
+def level_tolerance(model: Model, settings: StaticSettings):
+    """The tolerance of the intermediate load levels (see :class:`StaticSettings`)."""
+    if model.structure.has_friction:
+        return settings.tolerance
+    return jnp.maximum(settings.level_tolerance, settings.tolerance)
+
+
+def max_load_step(model: Model, settings: StaticSettings):
+    """The largest load increment of the continuation (see :class:`StaticSettings`)."""
+    first = 1.0 / settings.load_steps
+    if model.structure.has_friction:
+        return first
+    return jnp.maximum(settings.max_load_step, first)
+
+
 def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: _NewtonState,
                 previous=None) -> _NewtonState:
     """One pass of :func:`_newton` at load level ``lam`` (load scale ``ref``): residual,
     tangent and Newton step at the trial state, then accept or backtrack (see there);
     ``previous``: the frames (R, p) of the last converged level (the reference of the
     quasi-static friction)."""
-    tol = settings.tolerance * ref
+    tol = jnp.where(lam < 1.0, level_tolerance(model, settings), settings.tolerance) * ref
     r, blocks = residual_and_tangent(model, c.R, c.p, lam, settings.tangent, previous)
     if model.structure.joints:    # rods, bodies and joints: the bordered system
         res, dx, dy = _mechanism_step(model, ref, c.R, c.p, c.y, r, blocks)
@@ -373,11 +403,11 @@ def trial_level(c: _ContinuationState):
     return lam_try, Rs, ps, c.y + ratio * (c.y - c.y_prev)
 
 
-def after_newton(settings: StaticSettings, c: _ContinuationState, lam_try, R, p, y, its, res,
-                 status) -> _ContinuationState:
+def after_newton(model: Model, settings: StaticSettings, c: _ContinuationState, lam_try, R,
+                 p, y, its, res, status) -> _ContinuationState:
     """The continuation carry after the Newton solve at ``lam_try`` ended with ``status``:
     a converged level is accepted and the increment grows by 1.5 after an easy solve (fewer
-    than 5 steps), up to ``1/load_steps``; a failed one halves the increment."""
+    than 5 steps), up to :func:`max_load_step`; a failed one halves the increment."""
     ok = status == Status.CONVERGED
     grow = jnp.where(its < 5, 1.5, 1.0)
     keep = lambda new, old: jnp.where(ok, new, old)  # noqa: E731
@@ -386,7 +416,8 @@ def after_newton(settings: StaticSettings, c: _ContinuationState, lam_try, R, p,
         p_prev=keep(c.p, c.p_prev), y=keep(y, c.y), y_prev=keep(c.y, c.y_prev),
         lam_prev=keep(c.lam, c.lam_prev),
         lam=keep(lam_try, c.lam),
-        dlam=jnp.where(ok, jnp.minimum(c.dlam * grow, 1.0 / settings.load_steps), 0.5 * c.dlam),
+        dlam=jnp.where(ok, jnp.minimum(c.dlam * grow, max_load_step(model, settings)),
+                       0.5 * c.dlam),
         accepted=c.accepted + ok, failures=c.failures + (~ok),
         iterations=c.iterations + its, attempts=c.attempts + 1,
         residual=keep(res, c.residual), cause=keep(c.cause, status))
@@ -430,7 +461,7 @@ def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
         lam_try, Rs, ps, ys = trial_level(c)
         R, p, y, its, res, status = _newton(model, settings, Rs, ps, ys, lam_try, ref,
                                             (c.R, c.p))
-        return after_newton(settings, c, lam_try, R, p, y, its, res, status)
+        return after_newton(model, settings, c, lam_try, R, p, y, its, res, status)
 
     c = jax.lax.while_loop(lambda c: continuing(settings, c), body,
                            continuation_start(model, settings))

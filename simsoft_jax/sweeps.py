@@ -16,8 +16,9 @@ function, not a new lambda per call) to reuse it::
     points = sweeps.grid(theta=np.linspace(0, 90, 40), load=np.linspace(2, 18, 25))
     eq = sweeps.static_sweep(model, vary, points)      # eq.p: (1000, N, 3)
 
-Every point runs the same Newton iterations as a single solve. Static points are vmapped
-in small chunks (``STATIC_CHUNK``); large chunks use the flat continuation of
+Every point runs the same Newton iterations as a single solve. Static points run one
+after the other on each device by default (``STATIC_CHUNK`` = 1; a larger chunk vmaps
+that many); large chunks use the flat continuation of
 :mod:`simsoft_jax.batched` (one loop of Newton passes, so a vmapped chunk runs as long
 as its longest solve, not the sum of per-level maxima). Dynamic points run one after the
 other on each device by default (``DYNAMIC_CHUNK``). What was
@@ -40,7 +41,8 @@ from .sharding import (batch_mesh, gather_processes, process_share, sharded_map,
                        use_host_devices)
 from .statics import Equilibrium, StaticSettings, as_traced, equilibrium, solve_static
 
-__all__ = ["DYNAMIC_CHUNK", "FLAT_FROM", "STATIC_CHUNK", "WARM_ATTEMPTS", "batch_mesh", "dynamic_sweep",
+__all__ = ["DYNAMIC_CHUNK", "FLAT_FROM", "STATIC_CHUNK", "WARM_ATTEMPTS", "WARM_ITERATIONS",
+           "batch_mesh", "dynamic_sweep",
            "gather_processes", "grid", "process_share", "static_sweep", "use_host_devices"]
 
 
@@ -106,20 +108,27 @@ def _static_warm(model, points, vary, settings):
     return jax.lax.scan(step, (model.R0, model.p0), points)[1]
 
 
-# A warm start that needs more load steps than this is too far from the previous point: a
-# solve from the reference shape with the full continuation is cheaper than halving on.
+# A warm start that needs more load steps than WARM_ATTEMPTS, or more Newton steps than
+# WARM_ITERATIONS at one load level, is too far from the previous point: a solve from the
+# reference shape with the full continuation is cheaper than halving on (a 6-element
+# strip whose tip force jumps from 2 to 8 N: 50 Newton steps before the first halving and
+# 70 in all warm, 28 before giving up with 12 steps a level, 19 cold).
 WARM_ATTEMPTS = 3
+WARM_ITERATIONS = 12
 
 # Points solved together (jax.vmap) on one device, chosen from measurements
-# (benchmarks/README.md, "Batched sweeps"): static solves gain from small vmapped chunks
+# (benchmarks/README.md, "Batched sweeps"): static solves gained from small vmapped chunks
 # (CPU time per scene, random Princeton cases: chunk 8 0.6x a single solve, 32: 0.68x,
 # 96: 0.76x); from FLAT_FROM points per chunk on (large batches, e.g. on a GPU) the flat
 # continuation of simsoft_jax.batched is used, whose cost does not grow with the chunk
 # (0.72x at 8, 32 and 96). Dynamic rollouts of different scenes lose when vmapped (their
 # modified-Newton matrix rebuilds and iteration counts differ per step and a vmapped batch
 # pays the union: 2.4x a single rollout per scene at chunk 8), so they run one after the
-# other on each device.
-STATIC_CHUNK = 8
+# other on each device. After the loose intermediate load levels of the static solver
+# (fewer, more even Newton passes per case) vmapping no longer pays for statics either:
+# CPU ms per Princeton case on one device, 400 cases, load 1.3-2: chunk 1 (lax.map, one
+# after the other) 3.8-3.9, chunk 4 4.5-5.9, 8 4.6-4.7, 16 6.5-7.3; flat chunk 8 4.5-4.9.
+STATIC_CHUNK = 1
 FLAT_FROM = 64
 DYNAMIC_CHUNK = 1
 
@@ -144,14 +153,16 @@ def static_sweep(model: Model, vary: Callable, points: dict,
 
     The points are split over ``devices`` (default: every local device, see
     :func:`simsoft_jax.sharding.batch_mesh` and :func:`use_host_devices` for CPU cores)
-    and solved on each device ``chunk`` at a time (default ``STATIC_CHUNK``), vmapped;
+    and solved on each device ``chunk`` at a time, vmapped (default ``STATIC_CHUNK`` = 1:
+    one after the other);
     chunks of ``FLAT_FROM`` points or more use the flat continuation of
     :mod:`simsoft_jax.batched` (same results, a cost that does not grow with the chunk).
 
     ``warm_start=True`` solves the points one after the other (``lax.scan``), each from
     the equilibrium of the previous converged point with its full load at once
     (``load_steps=1``; a failing step is still halved by the continuation, at most
-    ``WARM_ATTEMPTS`` load steps in all, after which the point counts as failed): a natural
+    ``WARM_ATTEMPTS`` load steps in all and ``WARM_ITERATIONS`` Newton steps per load
+    step, after which the point counts as failed): a natural
     continuation along the sweep, a few Newton iterations per point when neighbouring
     points are close (order them so: :func:`grid` varies its last axis fastest). On a
     multistable problem it may follow a different branch than a solve from the
@@ -163,8 +174,9 @@ def static_sweep(model: Model, vary: Callable, points: dict,
     chunk, mesh = _chunk(chunk, STATIC_CHUNK), batch_mesh(devices)
     if not warm_start:
         return _static(model, points, vary, as_traced(settings), chunk, mesh)
-    eq = _static_warm(model, points, vary,
-                      settings.replace(load_steps=1, max_attempts=WARM_ATTEMPTS))
+    eq = _static_warm(model, points, vary, settings.replace(
+        load_steps=1, max_attempts=WARM_ATTEMPTS,
+        max_iterations=min(settings.max_iterations, WARM_ITERATIONS)))
     failed = np.flatnonzero(~np.asarray(eq.converged))
     if failed.size:       # too far from the previous point: solve those from the reference
         cold = _static(model, {name: value[failed] for name, value in points.items()},

@@ -30,8 +30,9 @@ SOFT = np.array([1e4, 1e4, 1e4, GJ, EI_Y, EI_Z])          # EA, GAy, GAz, GJ, EI
 STIFF = 1e7 * EI_Y / L**2                                  # "inextensible, unshearable"
 INEXTENSIBLE = np.array([STIFF, STIFF, STIFF, GJ, EI_Y, EI_Z])
 
-# Default solver settings (adaptive continuation from 10 load steps, divergence guard,
-# round-off stagnation test for the stiff "inextensible" elastica).
+# Default solver settings (adaptive continuation from a first load step of 1/10, loose
+# intermediate levels, divergence guard, round-off stagnation test for the stiff
+# "inextensible" elastica).
 SETTINGS = sj.StaticSettings(load_steps=10)
 
 EXACT = 1e-10      # pure bending / torsion: exact for any mesh, up to round-off (relative to L)
@@ -123,7 +124,7 @@ def tip_wrench(elements, force=(0.0, 0.0, 0.0), moment=(0.0, 0.0, 0.0)):
     return w
 
 
-def solve(elements, dead=None, follower=None, stiffness=SOFT):
+def solve(elements, dead=None, follower=None, stiffness=SOFT, settings=SETTINGS):
     """Equilibrium for a tip wrench (dead in world axes / follower in local axes), as numpy.
     Same structure for every call with the same element count: compiled once."""
     model = base_model(elements)
@@ -132,7 +133,7 @@ def solve(elements, dead=None, follower=None, stiffness=SOFT):
         nodal_dead=jax.numpy.asarray(zero if dead is None else dead),
         nodal_follower=jax.numpy.asarray(zero if follower is None else follower),
         stiffness=jax.numpy.asarray(np.tile(stiffness, (elements, 1))))
-    eq = jax.device_get(sj.solve_static(model, SETTINGS))
+    eq = jax.device_get(sj.solve_static(model, settings))
     return eq
 
 
@@ -335,3 +336,24 @@ def test_elastica_converges_at_second_order():
     errors, _, _ = elastica_errors()
     orders = np.log2(errors[:-1] / errors[1:])
     assert np.all((orders >= 1.7) & (orders <= 2.3)), orders
+
+
+def test_loose_intermediate_levels_reach_the_same_elastica():
+    """The default continuation (intermediate load levels solved to ``level_tolerance`` =
+    1e-3, increments growing past ``1/load_steps``) ends at the equilibrium of the strict
+    one (every level to ``tolerance``, increments at most 1/10: ``level_tolerance=0``,
+    ``max_load_step=0.1``) to 1e-9 L, in fewer Newton iterations; both within the
+    extensibility (P/EA <= 1e-3) and 16-element discretization error of the elastica's
+    closed form."""
+    strict = SETTINGS.replace(level_tolerance=0.0, max_load_step=0.1)
+    for beta in (1.0, 10.0):
+        dead = tip_wrench(16, force=(0.0, 0.0, -beta * EI_Y / L**2))
+        fast = solve(16, dead=dead)
+        slow = solve(16, dead=dead, settings=strict)
+        assert fast.converged and slow.converged, beta
+        assert np.max(np.abs(fast.p - slow.p)) <= 1e-9 * L, beta
+        assert np.max(np.abs(fast.R - slow.R)) <= 1e-9, beta
+        assert slow.load_steps >= 10 and fast.load_steps < slow.load_steps, beta
+        assert fast.iterations < slow.iterations, (beta, fast.iterations, slow.iterations)
+        x_ref, w_ref, _ = elastica_tip(beta)
+        assert np.hypot(fast.p[-1][0] - x_ref, -fast.p[-1][2] - w_ref) <= 2e-3 * L, beta
