@@ -60,8 +60,10 @@ def vary_helical(model, q):
 
 # The continuation before the loose intermediate levels (issue 16): every level solved to
 # the final tolerance, increments at most 1/load_steps. The same code path with the new
-# settings turned off, so "before" and "after" alternate in one run.
-BEFORE = sj.StaticSettings(level_tolerance=0.0, max_load_step=0.1)
+# settings turned off, so "before" and "after" alternate in one run. After: the
+# Princeton cases' settings (loose intermediate levels, increments up to the whole load).
+BEFORE = sj.StaticSettings(level_tolerance=0.0)
+AFTER = princeton.CASE_SETTINGS
 
 
 def static_rows(cases, rng):
@@ -79,7 +81,7 @@ def static_rows(cases, rng):
                                (1, sweeps.FLAT_FROM), (len(jax.local_devices()),
                                                        sweeps.FLAT_FROM))]
     for how, devices, chunk in runs:
-        for label, settings in (("before", BEFORE), ("after", sj.StaticSettings())):
+        for label, settings in (("before", BEFORE), ("after", AFTER)):
             settings = sj.statics.as_traced(settings)
             if how == "sequential loop":
                 wall, cpu, res = clock(lambda: [one(q, settings) for q in sub])
@@ -93,7 +95,7 @@ def static_rows(cases, rng):
             flat = " (flat)" if chunk == sweeps.FLAT_FROM else ""
             rows.append(row("static", f"{how}{flat}, {label}", n, wall, cpu, converged, devices)
                         | {"iterations": its})
-    plain = jit(jax.vmap(lambda q: sj.solve_static(vary(model, q), sj.StaticSettings())))
+    plain = jit(jax.vmap(lambda q: sj.solve_static(vary(model, q), AFTER)))
     arrays = {k: jnp.asarray(v) for k, v in points.items()}
     wall, cpu, ref = clock(plain, arrays)
     rows.append(row("static", "jax.vmap of solve_static, after", cases, wall, cpu,

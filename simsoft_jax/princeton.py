@@ -143,6 +143,13 @@ class Replay(NamedTuple):
     relative: bool
 
 
+# The solver settings of the load cases: increments may grow to the whole load
+# (``max_load_step=1``), so an easy case takes fewer than ``load_steps`` levels (a random
+# case: about 15 Newton steps instead of 25; the equilibria agree to 3e-13 m;
+# benchmarks/README.md, "Batched sweeps").
+CASE_SETTINGS = StaticSettings(max_load_step=1.0)
+
+
 def _vary_case(model: Model, point: dict) -> Model:
     """A sweep point ``{"theta": deg, "load": N}`` applied by :func:`case_model`."""
     return case_model(model, point["theta"], point["load"])
@@ -150,7 +157,7 @@ def _vary_case(model: Model, point: dict) -> Model:
 
 def replay(theta_deg=None, load_N=None, elements: int = 16, gravity: bool = True,
            relative: bool = False, stations=DEFAULT_STATIONS, stiffness=None,
-           settings: StaticSettings = StaticSettings(), chunk: int | None = None,
+           settings: StaticSettings = CASE_SETTINGS, chunk: int | None = None,
            warm_start: bool = False) -> Replay:
     """Solve the load cases in one compiled call (one compile per batch size).
 
@@ -322,7 +329,7 @@ def _case_table(measured: Measurements):
 
 def errors(measured: Measurements, elements: int = 16, gravity: bool = True,
            relative: bool = False, stiffness=None,
-           settings: StaticSettings = StaticSettings()) -> Errors:
+           settings: StaticSettings = CASE_SETTINGS) -> Errors:
     """Simulate the measured cases at the measured stations and apply eq. (112)."""
     cases, stations, table = _case_table(measured)
     sim = replay(cases[:, 0], cases[:, 1], elements, gravity, relative,
@@ -341,7 +348,7 @@ def errors(measured: Measurements, elements: int = 16, gravity: bool = True,
 
 
 def load_angle_sweep(theta_deg: Sequence[float], load_N: Sequence[float], elements: int = 16,
-                     gravity: bool = True, settings: StaticSettings = StaticSettings(),
+                     gravity: bool = True, settings: StaticSettings = CASE_SETTINGS,
                      warm_start: bool = True):
     """Tip deflection over a load-angle x load-magnitude grid in one compiled call.
 

@@ -85,8 +85,9 @@ class Scene(SpecBase):
 _TOP_KEYS = ("name", "solver", "gravity", "materials", "rods", "constraints", "loads",
              "initial_velocity", "masses", "bodies", "joints", "tendons", "chambers",
              "obstacles", "contact")
-_SOLVER_KEYS = ("kind", "tolerance", "max_iterations", "load_steps", "t_end", "dt",
-                "rho_inf", "save_every", "inertia", "tangent", "max_steps")
+_SOLVER_KEYS = ("kind", "tolerance", "max_iterations", "load_steps", "level_tolerance",
+                "max_load_step", "t_end", "dt", "rho_inf", "save_every", "inertia", "tangent",
+                "max_steps")
 _PROFILE_KEYS = {"constant": (), "ramp": ("t0", "t1"), "smoothstep": ("t0", "t1"),
                  "linear": ("rate",), "table": ("t", "scale", "file")}
 
@@ -187,6 +188,16 @@ def _parse_solver(value: Any) -> SolverSettings:
     for key in ("max_iterations", "load_steps", "save_every"):
         if key in s:
             out[key] = integer(s[key], join("solver", key), minimum=1)
+    if "level_tolerance" in s:
+        out["level_tolerance"] = number(s["level_tolerance"], "solver.level_tolerance")
+        if not 0.0 <= out["level_tolerance"] < 1.0:
+            fail("solver.level_tolerance", "must be in [0, 1) (a relative tolerance), got "
+                 f"{s['level_tolerance']}")
+    if "max_load_step" in s:
+        out["max_load_step"] = positive(s["max_load_step"], "solver.max_load_step")
+        if out["max_load_step"] > 1.0:
+            fail("solver.max_load_step", "must be in (0, 1] (a fraction of the full loads), "
+                 f"got {s['max_load_step']}")
     for key in ("t_end", "dt"):
         if key in s:
             out[key] = positive(s[key], join("solver", key))

@@ -22,6 +22,8 @@ class SolverSettings(SpecBase):
     tolerance: float = 1e-10
     max_iterations: int = 50
     load_steps: int = 10
+    level_tolerance: float = 1e-3     # static: tolerance of the intermediate load levels
+    max_load_step: float | None = None  # static: largest load increment (None: 1/load_steps)
     t_end: float | None = None
     dt: float | None = None
     rho_inf: float = 0.9

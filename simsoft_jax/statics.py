@@ -34,8 +34,8 @@ from .status import Status, describe, raise_if_failed
 class StaticSettings:
     """Solver settings. Floats are traced (changing them never recompiles); the integers
     (max_iterations, load_steps, max_attempts, line_search_steps) are static structure.
-    ``level_tolerance=0, max_load_step=1/load_steps`` is the continuation of before
-    issue 16 (every level to ``tolerance``, at least ``load_steps`` levels).
+    ``level_tolerance=0`` (with ``max_load_step`` left None) is the continuation of
+    before issue 16 (every level to ``tolerance``, at least ``load_steps`` levels).
 
     tolerance: converged when the weighted residual norm is below ``tolerance`` times the
       load scale (forces in N, moments divided by the model's ``char_length``).
@@ -43,11 +43,16 @@ class StaticSettings:
     load_steps: the first load increment of the continuation is ``1/load_steps`` of the
       full loads; increments are halved on failure down to ``min_step_fraction`` of it,
       and grow by 1.5 after easy steps (fewer than 5 Newton steps) up to
-      ``max_load_step``.
-    max_load_step: the largest load increment (fraction of the full loads) the
-      continuation grows to. With quasi-static friction (a load-path-dependent state) the
-      cap is ``1/load_steps`` whatever this is, so such a solve takes at least
-      ``load_steps`` increments.
+      ``max_load_step``. By default that cap is ``1/load_steps`` itself, so a solve
+      takes at least ``load_steps`` increments (the scene format's "minimum
+      continuation steps").
+    max_load_step: None (default: ``1/load_steps``, see above), or the largest load
+      increment (fraction of the full loads, in (0, 1]) the continuation may grow to:
+      ``max_load_step=1`` lets an easy solve take fewer than ``load_steps`` increments
+      (a random Princeton case: 15 instead of 25 Newton steps; benchmarks/README.md,
+      "Batched sweeps"; the Princeton replay and sweeps use it). With quasi-static
+      friction (a load-path-dependent state) the cap is ``1/load_steps`` whatever this
+      is.
     level_tolerance: the tolerance (as ``tolerance``) of the intermediate load levels
       (lam < 1); the last level (lam = 1) is always solved to ``tolerance``. Intermediate
       levels only start the next one (secant predictor), so a loose tolerance there saves
@@ -78,7 +83,7 @@ class StaticSettings:
     step_tolerance: float = 1e-11
     stagnation_level: float = 1e-6
     max_step_growth: float = 4.0
-    max_load_step: float = 1.0
+    max_load_step: float | None = None
     level_tolerance: float = 1e-3
     tangent: str = "closed_form"
 
@@ -249,7 +254,7 @@ def level_tolerance(model: Model, settings: StaticSettings):
 def max_load_step(model: Model, settings: StaticSettings):
     """The largest load increment of the continuation (see :class:`StaticSettings`)."""
     first = 1.0 / settings.load_steps
-    if model.structure.has_friction:
+    if settings.max_load_step is None or model.structure.has_friction:
         return first
     return jnp.maximum(settings.max_load_step, first)
 
@@ -582,4 +587,6 @@ def settings_from_scene(solver) -> StaticSettings:
     """StaticSettings from a scene's ``[solver]`` table."""
     return StaticSettings(tolerance=float(solver.tolerance),
                           max_iterations=int(solver.max_iterations),
-                          load_steps=int(solver.load_steps), tangent=solver.tangent)
+                          load_steps=int(solver.load_steps),
+                          level_tolerance=float(solver.level_tolerance),
+                          max_load_step=solver.max_load_step, tangent=solver.tangent)

@@ -76,6 +76,11 @@ BAD = [
     ("rho_inf above 1", mutate((("solver",), {**DYNAMIC, "rho_inf": 1.5})), "solver.rho_inf"),
     ("nan tolerance", mutate((("solver", "tolerance"), float("nan"))), "solver.tolerance"),
     ("zero max_iterations", mutate((("solver", "max_iterations"), 0)), "solver.max_iterations"),
+    ("level_tolerance of 1", mutate((("solver", "level_tolerance"), 1.0)), "solver.level_tolerance"),
+    ("negative level_tolerance", mutate((("solver", "level_tolerance"), -1e-3)),
+     "solver.level_tolerance"),
+    ("max_load_step above 1", mutate((("solver", "max_load_step"), 1.5)), "solver.max_load_step"),
+    ("zero max_load_step", mutate((("solver", "max_load_step"), 0.0)), "solver.max_load_step"),
     ("gravity of length 2", mutate((("gravity",), {"vector": [0.0, -9.81]})), "gravity.vector"),
     ("gravity with a string", mutate((("gravity",), {"vector": [0, 0, "g"]})), "gravity.vector[2]"),
     ("node out of range", mutate((LOAD + ("node",), 5)), "loads[0].node"),
@@ -215,6 +220,18 @@ def test_valid_base_scene():
     assert load.node == 4 and load.frame == "world" and load.profile.kind == "constant"
     with pytest.raises(ValueError, match="nope"):
         scene.rod("nope")
+
+
+def test_continuation_keys_reach_the_static_settings():
+    """``solver.level_tolerance`` / ``max_load_step`` reach StaticSettings; absent, the
+    largest increment is ``1/load_steps`` (the scene format's minimum continuation
+    steps: :func:`statics.max_load_step` is None there)."""
+    from simsoft_jax.statics import settings_from_scene
+    plain = settings_from_scene(Scene.from_dict(BASE).solver)
+    assert plain.max_load_step is None and plain.level_tolerance == 1e-3
+    given = {**BASE, "solver": {**BASE["solver"], "level_tolerance": 0.0, "max_load_step": 0.5}}
+    settings = settings_from_scene(Scene.from_dict(given).solver)
+    assert settings.level_tolerance == 0.0 and settings.max_load_step == 0.5
 
 
 def test_node_resolution_negative_and_arc_length():

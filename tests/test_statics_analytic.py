@@ -339,21 +339,27 @@ def test_elastica_converges_at_second_order():
 
 
 def test_loose_intermediate_levels_reach_the_same_elastica():
-    """The default continuation (intermediate load levels solved to ``level_tolerance`` =
-    1e-3, increments growing past ``1/load_steps``) ends at the equilibrium of the strict
-    one (every level to ``tolerance``, increments at most 1/10: ``level_tolerance=0``,
-    ``max_load_step=0.1``) to 1e-9 L, in fewer Newton iterations; both within the
-    extensibility (P/EA <= 1e-3) and 16-element discretization error of the elastica's
-    closed form."""
-    strict = SETTINGS.replace(level_tolerance=0.0, max_load_step=0.1)
+    """Intermediate load levels solved to ``level_tolerance`` = 1e-3 (the default) end at
+    the equilibrium of the strict continuation (every level to ``tolerance``,
+    ``level_tolerance=0``) to 1e-9 L in no more Newton steps, and still take at least
+    ``load_steps`` increments (the scene format's "minimum continuation steps");
+    ``max_load_step=1`` (increments growing past ``1/load_steps``) reaches it in fewer
+    increments and steps. All within the extensibility (P/EA <= 1e-3) and 16-element
+    discretization error of the elastica's closed form."""
+    strict = SETTINGS.replace(level_tolerance=0.0)
+    grown = SETTINGS.replace(max_load_step=1.0)
     for beta in (1.0, 10.0):
         dead = tip_wrench(16, force=(0.0, 0.0, -beta * EI_Y / L**2))
-        fast = solve(16, dead=dead)
         slow = solve(16, dead=dead, settings=strict)
-        assert fast.converged and slow.converged, beta
-        assert np.max(np.abs(fast.p - slow.p)) <= 1e-9 * L, beta
-        assert np.max(np.abs(fast.R - slow.R)) <= 1e-9, beta
-        assert slow.load_steps >= 10 and fast.load_steps < slow.load_steps, beta
+        loose = solve(16, dead=dead)
+        fast = solve(16, dead=dead, settings=grown)
+        assert slow.converged and loose.converged and fast.converged, beta
+        for other in (loose, fast):
+            assert np.max(np.abs(other.p - slow.p)) <= 1e-9 * L, beta
+            assert np.max(np.abs(other.R - slow.R)) <= 1e-9, beta
+        assert slow.load_steps >= 10 and loose.load_steps >= 10, beta
+        assert fast.load_steps < 10, beta
+        assert loose.iterations <= slow.iterations, (beta, loose.iterations, slow.iterations)
         assert fast.iterations < slow.iterations, (beta, fast.iterations, slow.iterations)
         x_ref, w_ref, _ = elastica_tip(beta)
         assert np.hypot(fast.p[-1][0] - x_ref, -fast.p[-1][2] - w_ref) <= 2e-3 * L, beta
