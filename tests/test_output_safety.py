@@ -156,12 +156,13 @@ def test_nonfinite_values_are_written_as_null(result, tmp_path, monkeypatch):
 
 
 def test_failed_solve_with_infinite_residual_gives_strict_json(tmp_path):
-    """One load step, one Newton iteration, a tip moment bending the rod 8 rad: no load
-    level is ever accepted, so the residual at the last accepted level is infinite; the
-    file writes null there and the status says why the solve ended."""
+    """One load step, one Newton iteration, every level to the final tolerance, a tip
+    moment bending the rod 8 rad: no load level is ever accepted, so the residual at the
+    last accepted level is infinite; the file writes null there and the status says why
+    the solve ended."""
     E, W, H, L = 71.7e9, 3.2024e-3, 12.377e-3, 0.508
     d = scene_dict(moment=(0.0, 0.0, 8.0 * E * H * W**3 / 12.0 / L), max_iterations=1,
-                   load_steps=1)
+                   load_steps=1, level_tolerance=0.0)
     r = sj.run(d)
     assert not r.converged and r.load_level == 0.0 and np.isinf(r.residual_norm)
     data = strict_json(r.save(tmp_path / "failed.json").read_text())
