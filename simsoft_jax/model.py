@@ -213,8 +213,61 @@ class Model:
     self_exclusion: jax.Array = None
 
     def replace(self, **changes) -> "Model":
-        """A copy with some arrays replaced (same structure: no recompilation)."""
-        return dataclasses.replace(self, **changes)
+        """A copy with some arrays replaced (same structure: no recompilation).
+
+        Checked, with a ValueError naming the field: an array keeps its shape (the
+        structure fixes it), and a concrete non-zero value of a term this model was built
+        without (e.g. ``nodal_dead`` of a scene with no world-frame nodal load,
+        ``viscosity`` of one without viscosity) is refused, since the solvers would not
+        read it (:func:`check_built_terms`); traced values are not inspected.
+        """
+        for key, value in changes.items():
+            old = getattr(self, key, None) if key != "structure" else None
+            if (old is not None and value is not None and hasattr(old, "shape")
+                    and np.shape(value) != np.shape(old)):
+                raise ValueError(f"Model.replace: {key}: shape {np.shape(value)} differs from "
+                                 f"the model's {np.shape(old)} (the structure fixes the "
+                                 "shapes; build a new model from the scene)")
+        model = dataclasses.replace(self, **changes)
+        check_built_terms(model, changes)
+        return model
+
+
+# Arrays whose term the solvers trace only when the scene has it: (field, the Structure
+# flag that says so, what the term is).
+_BUILT_TERMS = (
+    ("nodal_dead", "has_nodal_dead", "world-frame nodal loads"),
+    ("nodal_follower", "has_nodal_follower", "section-frame (follower) nodal loads"),
+    ("distributed_world", "has_distributed_world", "world-frame distributed forces"),
+    ("distributed_local", "has_distributed_local", "section-frame distributed forces"),
+    ("element_point_dead", "has_point_dead", "world-frame point loads inside elements"),
+    ("element_point_follower", "has_point_follower",
+     "section-frame point loads inside elements"),
+    ("gravity", "has_gravity", "gravity"),
+    ("viscosity", "has_viscosity", "viscous terms"),
+    ("mass_damping", "has_mass_damping", "mass damping"),
+    ("obstacle_friction", "has_friction", "friction"),
+    ("obstacle_shift", "moving_obstacles", "moving obstacles"),
+)
+
+
+def check_built_terms(model: "Model", fields=None) -> None:
+    """Raise a ValueError naming the field when ``model`` holds concrete non-zero values
+    of a term its structure does not trace (they would be silently ignored): the load,
+    gravity, viscosity, mass-damping, friction and obstacle-motion arrays of
+    ``_BUILT_TERMS``, all of them or those in ``fields``. Traced values (inside ``jit``,
+    ``vmap`` or ``grad``) are not inspected."""
+    s = model.structure
+    for key, flag, what in _BUILT_TERMS:
+        if fields is not None and key not in fields:
+            continue
+        value = getattr(model, key)
+        if (getattr(s, flag) or value is None or isinstance(value, jax.core.Tracer)
+                or not np.any(np.asarray(value) != 0.0)):
+            continue
+        raise ValueError(f"{key}: this model was built without {what} (all {key} values "
+                         f"zero), so non-zero values would be ignored; build it from a "
+                         f"scene that has {what}")
 
 
 jax.tree_util.register_dataclass(

@@ -254,3 +254,36 @@ def test_viscosity_on_a_model_built_without_it_is_refused():
     assert not model.structure.has_viscosity
     with pytest.raises(ValueError, match="viscosity: this model was built without"):
         sj.simulate(model.replace(viscosity=model.viscosity + 1.0), SETTINGS)
+
+
+def test_replace_refuses_terms_the_structure_does_not_trace_and_changed_shapes():
+    """A value the solvers would not read is refused where it is set (naming the field);
+    zeros, and traced values inside jit, pass. The reference: a model rebuilt from the
+    scene with the load present gives a different equilibrium, so the refused value was
+    one that matters."""
+    scene = {"solver": {"kind": "static"},
+             "rods": [{"name": "r", "elements": 3, "geometry": {"kind": "straight", "length": 1.0},
+                       "stiffness": {"EA": 1e4, "GAy": 1e4, "GAz": 1e4, "GJ": 1.0,
+                                     "EIy": 1.0, "EIz": 1.0},
+                       "inertia": {"rhoA": 0.1, "rhoJ": 1e-3, "rhoIy": 1e-3, "rhoIz": 1e-3}}],
+             "constraints": [{"kind": "clamp", "rod": "r", "node": 0}],
+             "loads": [{"kind": "moment", "rod": "r", "node": -1, "vector": [0, 0.1, 0],
+                        "frame": "local"}]}
+    model = sj.build_model(sj.Scene.from_dict(scene))
+    tip = np.zeros((4, 6))
+    tip[-1, 2] = 0.5
+    for key, value in (("nodal_dead", tip), ("gravity", np.array([0.0, 0.0, -9.81])),
+                       ("distributed_world", np.ones((3, 3)))):
+        with pytest.raises(ValueError, match=f"^{key}: this model was built without"):
+            model.replace(**{key: value})
+    assert model.replace(nodal_dead=np.zeros((4, 6))).structure == model.structure
+    with pytest.raises(ValueError, match=r"Model.replace: stiffness: shape \(3, 6, 6\)"):
+        model.replace(stiffness=np.broadcast_to(np.eye(6), (3, 6, 6)))
+    traced = jax.jit(lambda g: model.replace(gravity=g).gravity)(jnp.array([0.0, 0.0, -1.0]))
+    np.testing.assert_array_equal(np.asarray(traced), [0.0, 0.0, -1.0])
+    scene["loads"].append({"kind": "force", "rod": "r", "node": -1, "vector": [0, 0, 0.5]})
+    loaded = sj.build_model(sj.Scene.from_dict(scene))
+    assert loaded.structure.has_nodal_dead
+    plain = sj.solve_static(model, sj.StaticSettings())
+    pushed = sj.solve_static(loaded, sj.StaticSettings())
+    assert float(jnp.abs(pushed.p[-1, 2] - plain.p[-1, 2])) > 1e-3

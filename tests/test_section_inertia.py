@@ -3,6 +3,8 @@
 kinetic energy of a rigid segment, the weight's twist of a cantilever whose centre of
 mass is off its axis (:mod:`simsoft_jax.terms.offset_gravity`), a free spinning rod
 falling under gravity against the rigid-body solution, both tangent paths, bad input."""
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -80,9 +82,9 @@ def test_diagonal_matrix_is_bitwise_the_diagonal_path_and_mixed_segments():
     # the (6,6) kernels on a diagonal matrix give the diagonal kernels' numbers: the
     # consistent mass matrices, and the lumped gyroscopic force (maps N0(0) = [I, 0],
     # N0(L) = [0, I] at the two nodes)
-    full = np.broadcast_to(np.diag(diag), (6, 6, 6))
+    full = np.broadcast_to(np.diag(diag), (6, 6, 6))  # (Model.replace keeps shapes)
     np.testing.assert_allclose(
-        np.asarray(element_inertia(m_diag.replace(inertia=jnp.asarray(full))).masses),
+        np.asarray(element_inertia(dataclasses.replace(m_diag, inertia=jnp.asarray(full))).masses),
         masses[0], rtol=1e-14, atol=1e-20)
     maps = jnp.asarray(np.eye(12).reshape(2, 6, 12))
     u = jnp.asarray(np.random.default_rng(0).standard_normal(12))

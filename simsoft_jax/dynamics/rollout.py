@@ -12,7 +12,6 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from .. import element, lie, mechanisms
 from .._xla import jit
@@ -20,7 +19,7 @@ from ..assembly import apply_constraints, assemble_blocks, attachments_and_tange
 from ..linalg import block_solve, factorize_coupled, solve_coupled
 from ..drives import reduce, slide_maps
 from ..loads import loads_at
-from ..model import Model
+from ..model import Model, check_built_terms
 from ..statics import as_traced
 from ..status import Status, describe, poison_gradient, raise_if_failed
 from .memory import empty_newton_memory
@@ -100,20 +99,6 @@ def initial_state(model: Model, t0=0.0, inert=None) -> State:
     return State(model.R0, model.p0, model.v0, vd0, vd0, t0)
 
 
-def _check_viscosity(model: Model):
-    """A structure built without Kelvin-Voigt (or mass-proportional damping) terms cannot
-    be given viscosities (or mass-damping constants) later."""
-    s = model.structure
-    for key, traced, what in (("viscosity", s.has_viscosity, "viscous terms"),
-                              ("mass_damping", s.has_mass_damping, "mass damping")):
-        value = getattr(model, key)
-        if traced or isinstance(value, jax.core.Tracer) or not np.any(np.asarray(value) != 0.0):
-            continue
-        raise ValueError(f"{key}: this model was built without {what} (all {key} values "
-                         f"zero), so non-zero values would be ignored; build it from a "
-                         f"scene whose material has a {key}")
-
-
 def simulate(model: Model, settings: DynamicSettings, state: State | None = None,
              differentiable: bool = False, throw: bool = False) -> Trajectory:
     """Roll out ``settings.steps`` steps of size ``settings.dt`` (``lax.scan``).
@@ -130,7 +115,7 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
     :func:`initial_state`; it is cast to float64 first, so weakly typed inputs do not
     trigger a recompilation.
     """
-    _check_viscosity(model)
+    check_built_terms(model, ("viscosity", "mass_damping"))
     if state is not None:
         state = State(*(jnp.asarray(x, jnp.float64) for x in state))
     traj = _simulate(model, as_traced(settings), state, differentiable=differentiable)
