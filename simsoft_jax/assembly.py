@@ -147,9 +147,11 @@ def contact_and_tangent(model: Model, R, p, v=None):
     """Nodal forces (E,12) of the contact with the obstacles
     (:mod:`simsoft_jax.terms.contact`), their left-invariant tangents (E,12,12) and, in
     dynamics with friction (``v`` (N,6) the nodal body velocities), their derivatives in
-    the nodal velocities (E,12,12) (else None), by ``jax.jacfwd`` in the 12 right
-    perturbations of the two nodal frames (and the 12 velocities); None when the scene has
-    no obstacles. Contact is a reaction: it is not scaled by the load level."""
+    the nodal velocities (E,12,12) (else None). Frictionless: the tangent of
+    :func:`~simsoft_jax.terms.contact.force_and_tangent`; with friction: ``jax.jacfwd`` in
+    the 12 right perturbations of the two nodal frames and the 12 velocities. None when
+    the scene has no obstacles. Contact is a reaction: it is not scaled by the load
+    level."""
     s = model.structure
     if not s.obstacle_kinds:
         return None
@@ -159,16 +161,22 @@ def contact_and_tangent(model: Model, R, p, v=None):
           else jnp.zeros((s.n_elements, 12), p.dtype))
 
     def one(RA, pA, RB, pB, ve, data):
+        if not friction:   # the tangent in closed form but for the map's d-derivative
+            value, jac = contact.force_and_tangent(element_state(RA, pA, RB, pB, ve, ve),
+                                                   data.contact, data.length,
+                                                   s.obstacle_kinds, s.contact_points)
+            return value, jac, None
+
         def f(y):
             RA1, pA1 = lie.compose_exp(RA, pA, y[:6])
             RB1, pB1 = lie.compose_exp(RB, pB, y[6:12])
-            el = element_state(RA1, pA1, RB1, pB1, ve + y[12:] if friction else ve, ve)
+            el = element_state(RA1, pA1, RB1, pB1, ve + y[12:], ve)
             value = contact.force(el, data.contact, data.length, s.obstacle_kinds,
-                                  s.contact_points, friction)
+                                  s.contact_points, True)
             return value, value
 
-        jac, value = jax.jacfwd(f, has_aux=True)(jnp.zeros(24 if friction else 12, RA.dtype))
-        return value, jac[:, :12], jac[:, 12:] if friction else None
+        jac, value = jax.jacfwd(f, has_aux=True)(jnp.zeros(24, RA.dtype))
+        return value, jac[:, :12], jac[:, 12:]
 
     return jax.vmap(one)(*element_poses(model, R, p), ve, element_data(model))
 

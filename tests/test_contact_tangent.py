@@ -1,0 +1,74 @@
+"""The frictionless contact tangent (:func:`simsoft_jax.terms.contact.force_and_tangent`)
+against its reference: ``jax.jacfwd`` of the contact force
+(:func:`simsoft_jax.terms.contact.force`) in the 12 right perturbations of the two nodal
+frames, for every obstacle kind, a bent and twisted element pressed into each obstacle at
+several stations, with and without end caps."""
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from simsoft_jax import lie
+from simsoft_jax.scene_contact import ROW
+from simsoft_jax.terms import contact, element_state
+
+RADIUS, STIFFNESS, POINTS = 0.01, 2e6, 3
+
+
+def _row(values):
+    row = np.zeros(ROW)
+    row[:len(values)] = values
+    return row
+
+
+# each obstacle placed so that the element below (from the origin along about +x, 0.1 m,
+# bent and twisted) sinks into it by a few millimetres somewhere along its length
+OBSTACLES = {
+    "plane": _row([0, 0, -0.004, 0.1, 0.2, 1.0]),
+    "sphere": _row([0.06, 0.0, -0.045, 0, 0, 0, 0.05]),
+    "capsule": _row([0.0, 0.0, -0.028, 0.094, -0.021, -0.052, 0.02]),
+    "cylinder": _row([0.0, 0.0, -0.032, 0.1, 1.0, 0.05, 0.03]),
+    "tube": _row([0.0, 0.005, 0.002, 1.0, 0.05, 0.02, 0.012]),
+    "curved_tube": _row([0.0, 0.2, 0.0, 0.0, 0.0, 1.0, 0, 0.0, 0.0, 0.003, 0.8]),
+}
+
+
+def _element():
+    rng = np.random.default_rng(7)
+    RA = lie.exp_so3(jnp.asarray(0.1 * rng.standard_normal(3)))
+    pA = jnp.asarray([0.0, 0.0, 0.0])
+    d = jnp.asarray([0.1, 0.003, -0.002, 0.4, 0.3, -0.5])   # stretch, shear, twist, bending
+    RB, pB = lie.compose_exp(RA, pA, d)
+    return RA, pA, RB, pB
+
+
+@pytest.mark.parametrize("kind", sorted(OBSTACLES))
+def test_frictionless_tangent_equals_jacfwd_of_the_force(kind):
+    RA, pA, RB, pB = _element()
+    length, zero = jnp.asarray(0.1), jnp.zeros(12)
+
+    def data(caps):
+        return contact.ContactData(jnp.asarray(RADIUS), jnp.asarray(STIFFNESS),
+                                   jnp.asarray(OBSTACLES[kind])[None], jnp.zeros(1),
+                                   jnp.asarray(0.01), jnp.zeros((1, 3)), caps)
+
+    def force(y, caps):
+        RA1, pA1 = lie.compose_exp(RA, pA, y[:6])
+        RB1, pB1 = lie.compose_exp(RB, pB, y[6:])
+        return contact.force(element_state(RA1, pA1, RB1, pB1, zero, zero), data(caps),
+                             length, (kind,), POINTS)
+
+    both = jax.jit(lambda caps: (
+        contact.force_and_tangent(element_state(RA, pA, RB, pB, zero, zero), data(caps),
+                                  length, (kind,), POINTS),
+        force(zero, caps), jax.jacfwd(force)(zero, caps)))
+    pressed = contact.stations(RA, pA, element_state(RA, pA, RB, pB, zero, zero).d,
+                               data(None), (kind,), POINTS)[0]
+    assert int(jnp.sum(pressed > 0.0)) >= 2          # the element is in contact
+    for caps in (jnp.zeros(2), jnp.array([RADIUS, RADIUS])):    # without and with end caps
+        (value, tangent), expected, reference = both(caps)
+        np.testing.assert_allclose(value, expected, rtol=0,
+                                   atol=1e-12 * float(jnp.abs(expected).max()))
+        assert float(jnp.abs(reference).max()) > 0.0
+        np.testing.assert_allclose(tangent, reference, rtol=0,
+                                   atol=1e-9 * float(jnp.abs(reference).max()))
