@@ -95,7 +95,8 @@ def scene(elements: int = 16, gravity: bool = True, stiffness=None) -> Scene:
 
 
 def case_model(model: Model, theta_deg, load_N) -> Model:
-    """``model`` with the tip weight ``load_N`` (N) and gravity of the pitch ``theta_deg``.
+    """``model`` with the tip weight ``load_N`` (N) and gravity of the pitch ``theta_deg``
+    (gravity only when the model was built with it, :func:`scene`).
 
     Both act along ``(0, -sin theta, -cos theta)`` in the root section's axes (module
     docstring). Traceable: ``theta_deg`` and ``load_N`` may be batched with ``jax.vmap``.
@@ -103,6 +104,8 @@ def case_model(model: Model, theta_deg, load_N) -> Model:
     th = jnp.deg2rad(jnp.asarray(theta_deg, jnp.float64))
     down = jnp.stack([0.0 * th, -jnp.sin(th), -jnp.cos(th)])
     nodal = jnp.zeros_like(model.nodal_dead).at[-1, :3].set(load_N * down)
+    if not model.structure.has_gravity:
+        return model.replace(nodal_dead=nodal)
     return model.replace(nodal_dead=nodal, gravity=GRAVITY * down)
 
 
