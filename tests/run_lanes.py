@@ -3,8 +3,8 @@
     python tests/run_lanes.py [extra pytest arguments]
 
 Lane 1 runs the tests not marked ``slow``, lane 2 the ``slow`` ones (example and notebook
-runs, long rollouts); on a 2-core machine the two take about the same time (32 and 27
-min for the 87 slow and 1087 other tests, measured 2026-11-24 with the test compile flags
+runs, long rollouts); on a 2-core machine the two take about the same time (25 and 22
+min for the 87 slow and 1102 other tests, measured 2026-11-24 with the test compile flags
 of ``tests/conftest.py``; one ``python -m pytest -q`` of a smaller suite before the split
 took 34 min). Each lane's output goes to a log file and is printed whole
 when the lane ends (never interleaved); the last line sums both lanes in pytest's words
