@@ -222,7 +222,7 @@ class Model:
         read it (:func:`check_built_terms`); traced values are not inspected.
         """
         for key, value in changes.items():
-            old = getattr(self, key, None) if key != "structure" else None
+            old = getattr(self, key, None)
             if (old is not None and value is not None and hasattr(old, "shape")
                     and np.shape(value) != np.shape(old)):
                 raise ValueError(f"Model.replace: {key}: shape {np.shape(value)} differs from "

@@ -118,21 +118,27 @@ def _gap_and_normal(kind, params, radius, x):
     return phi - radius, normal
 
 
+def _point_contact(y, data: ContactData, kinds: tuple):
+    """Per obstacle at the centreline point ``y`` (3,): the penetration (K,) m, the normal
+    line load ``psi'`` (K,) N/m and the unit normal (K,3) (world)."""
+    eps = SMOOTHING * data.radius
+    pen, load, normals = [], [], []
+    for k, kind in enumerate(kinds):
+        g, nrm = _gap_and_normal(kind, data.obstacles[k], data.radius, y)
+        pen.append(-g)
+        load.append(penalty_slope(-g, data.stiffness, eps))
+        normals.append(nrm)
+    return jnp.stack(pen), jnp.stack(load), jnp.stack(normals)
+
+
 def stations(RA, pA, d, data: ContactData, kinds: tuple, n: int):
     """Per station (:func:`station_points`, S = n+2) and obstacle: the penetration (S,K) m,
     the normal line load ``psi'`` (S,K) N/m and the unit normals (S,K,3) (world), and the
     section frames (S,3,3), (S,3) at the stations."""
     xi = station_points(n)
     R, x = jax.vmap(lambda t: centreline_point(RA, pA, d, t))(jnp.asarray(xi))
-    eps = SMOOTHING * data.radius
-    pen, load, normals = [], [], []
-    for k, kind in enumerate(kinds):
-        g, nrm = jax.vmap(lambda y: _gap_and_normal(kind, data.obstacles[k], data.radius,
-                                                    y))(x)
-        pen.append(-g)
-        load.append(penalty_slope(-g, data.stiffness, eps))
-        normals.append(nrm)
-    return (jnp.stack(pen, 1), jnp.stack(load, 1), jnp.stack(normals, 1), R, x)
+    pen, load, normals = jax.vmap(lambda y: _point_contact(y, data, kinds))(x)
+    return pen, load, normals, R, x
 
 
 def force(el, data: ContactData, length, kinds: tuple, n: int, friction: bool = False):
@@ -174,14 +180,10 @@ def force_and_tangent(el, data: ContactData, length, kinds: tuple, n: int):
     """
     xi = jnp.asarray(station_points(n))
     R, x = jax.vmap(lambda t: centreline_point(el.RA, el.pA, el.d, t))(xi)
-    eps = SMOOTHING * data.radius
 
     def line_load(y):   # world line load (3,) N/m at the point y
-        total = jnp.zeros(3, y.dtype)
-        for k, kind in enumerate(kinds):
-            g, nrm = _gap_and_normal(kind, data.obstacles[k], data.radius, y)
-            total = total + penalty_slope(-g, data.stiffness, eps) * nrm
-        return total
+        _, load, normals = _point_contact(y, data, kinds)
+        return load @ normals
 
     F, H = jax.vmap(lambda y: (line_load(y), jax.jacfwd(line_load)(y)))(x)
     local = jnp.einsum("sji,sj->si", R, F)                                  # R^T F (S,3)
