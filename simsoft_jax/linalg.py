@@ -46,20 +46,23 @@ def block_matvec(blocks, x):
     return y.at[1:].add(jnp.einsum("nij,nj->ni", lower, x[:-1]))
 
 
-def dense(blocks):
+def dense(blocks, nodes=None):
     """The block-tridiagonal matrix as a dense (6N, 6N) array (the dense factorization,
     tests and debugging): one gather of the blocks by a static (N, N) table of which
-    block (or a zero block) sits where (XLA on CPU would run a scatter as a loop)."""
+    block (or a zero block) sits where (XLA on CPU would run a scatter as a loop).
+    ``nodes``: a static increasing sequence of node indices, to assemble only their rows
+    and columns (6 len(nodes) square); all nodes when None."""
     diag, upper, lower = blocks
     n = diag.shape[0]
+    nodes = np.arange(n) if nodes is None else np.asarray(nodes, dtype=int)
+    k = nodes.size
     zero = jnp.zeros((1, 6, 6), diag.dtype)
     stacked = jnp.concatenate([zero, diag, upper, lower])        # 0, 1.., 1+n.., n+n..
-    idx = np.arange(n)
-    which = np.zeros((n, n), dtype=int)
-    which[idx, idx] = 1 + idx
-    which[idx[:-1], idx[1:]] = 1 + n + idx[:-1]
-    which[idx[1:], idx[:-1]] = 2 * n + idx[:-1]
-    return jnp.swapaxes(stacked[which], 1, 2).reshape(6 * n, 6 * n)
+    i, j = nodes[:, None], nodes[None, :]
+    which = np.where(i == j, 1 + i, 0)
+    which = np.where(j == i + 1, 1 + n + i, which)
+    which = np.where(i == j + 1, 2 * n + j, which)
+    return jnp.swapaxes(stacked[which], 1, 2).reshape(6 * k, 6 * k)
 
 
 # Chains of at most this many nodes are solved by a dense LU of the assembled matrix: on
@@ -100,13 +103,13 @@ def lu_solve(factors, b, transpose=False):
 
 
 @functools.partial(jax.tree_util.register_dataclass,
-                   data_fields=("lu", "perm", "C", "lower"), meta_fields=("kind",))
+                   data_fields=("lu", "perm", "C", "lower"), meta_fields=("kind", "identity"))
 @dataclasses.dataclass(frozen=True)
 class Factors:
     """Factors of a block-tridiagonal ``K`` (:func:`factorize`), a pytree.
 
-    kind (static): ``"dense"``: ``lu`` (6N,6N) and ``perm`` (6N,) of :func:`lu` applied to
-    the assembled matrix, ``C`` and ``lower`` None. ``"thomas"``: the block LU of block
+    kind (static): ``"dense"``: ``lu`` (6F,6F) and ``perm`` (6F,) of :func:`lu` applied to
+    the assembled matrix of the F nodes not in ``identity``, ``C`` and ``lower`` None. ``"thomas"``: the block LU of block
     Thomas, ``lu`` (N,6,6) and ``perm`` (N,6) of the pivot blocks ``S_i``,
     ``C`` (N,6,6) the blocks ``C_i = S_i^-1 U_i`` (``C_{N-1} = 0``), ``lower`` (N-1,6,6)
     the sub-diagonal of ``K``.
@@ -116,9 +119,10 @@ class Factors:
     perm: jax.Array
     C: jax.Array | None = None
     lower: jax.Array | None = None
+    identity: tuple = ()
 
 
-def factorize(blocks) -> Factors:
+def factorize(blocks, identity: tuple = ()) -> Factors:
     """Factors of a block-tridiagonal ``K`` for :func:`solve_factored` (spec 3.6).
 
     Chosen at trace time by size: :func:`lu` of the (6N, 6N) matrix for
@@ -126,11 +130,20 @@ def factorize(blocks) -> Factors:
     ``S_i = D_i - L_i C_{i-1}`` (each LU-factorized with partial pivoting) and
     ``C_i = S_i^-1 U_i``. O(N) 6x6 operations (``lax.scan``); a singular pivot gives
     non-finite solutions, which the Newton solvers detect and report.
+
+    ``identity``: static indices of nodes whose rows and columns of ``K`` are those of the
+    identity (fully held nodes after :func:`simsoft_jax.assembly.apply_constraints`, e.g.
+    a clamped rod end). ``K`` is then block diagonal in them and the rest, so the dense LU
+    factorizes only the rest (a clamped 11-node chain: 60 instead of 66 unknowns, about
+    15 % less work per factorization and solve) and ``x = b`` on them. Not checked: the
+    caller guarantees it (:meth:`simsoft_jax.model.Structure.identity_nodes`).
     """
     diag, upper, lower = blocks
     n = diag.shape[0]
     if n <= DENSE_LIMIT_NODES:
-        return Factors("dense", *lu(dense(blocks)))
+        identity = tuple(sorted(set(identity)))
+        rest = [i for i in range(n) if i not in identity] if identity else None
+        return Factors("dense", *lu(dense(blocks, rest)), identity=identity)
     pad_u = jnp.concatenate([upper, jnp.zeros((1, 6, 6))])
     pad_l = jnp.concatenate([jnp.zeros((1, 6, 6)), lower])
 
@@ -149,8 +162,16 @@ def solve_factored(factors: Factors, b, transpose=False):
     (N,6), or (N,6,k) for k right-hand sides at once."""
     n = b.shape[0]
     if factors.kind == "dense":
-        x = lu_solve((factors.lu, factors.perm), b.reshape(6 * n, *b.shape[2:]), transpose)
-        return x.reshape(b.shape)
+        if not factors.identity:
+            x = lu_solve((factors.lu, factors.perm), b.reshape(6 * n, *b.shape[2:]), transpose)
+            return x.reshape(b.shape)
+        rest = np.array([i for i in range(n) if i not in factors.identity])
+        x = lu_solve((factors.lu, factors.perm), b[rest].reshape(6 * rest.size, *b.shape[2:]),
+                     transpose).reshape((rest.size,) + b.shape[1:])
+        # x on the rest, b on the identity nodes: one static gather (no scatter)
+        where = np.arange(rest.size, rest.size + n)
+        where[rest] = np.arange(rest.size)
+        return jnp.concatenate([x, b])[where]
     f, perm, C, lower = factors.lu, factors.perm, factors.C, factors.lower
     zero = jnp.zeros(b.shape[1:])
     if transpose:  # K^T = U^T L^T: U^T z = b forward, then L^T x = z backward
@@ -188,16 +209,17 @@ def solve_factored(factors: Factors, b, transpose=False):
     return X
 
 
-def block_solve(blocks, b):
-    """Solve ``K x = b`` for a block-tridiagonal ``K``; b, x (N,6) (see :func:`factorize`)."""
-    return solve_factored(factorize(blocks), b)
+def block_solve(blocks, b, identity: tuple = ()):
+    """Solve ``K x = b`` for a block-tridiagonal ``K``; b, x (N,6) (see :func:`factorize`,
+    also for ``identity``)."""
+    return solve_factored(factorize(blocks, identity), b)
 
 
-def implicit_solve(blocks, b):
+def implicit_solve(blocks, b, identity: tuple = ()):
     """``K^-1 b`` (N,6) inside ``lax.custom_linear_solve`` (the implicit-function-theorem
     solve of statics and dynamics): one factorization of ``K`` serves the solve and the
-    transposed solve of reverse mode."""
-    factors = factorize(blocks)
+    transposed solve of reverse mode. ``identity``: see :func:`factorize`."""
+    factors = factorize(blocks, identity)
     return jax.lax.custom_linear_solve(
         lambda x: block_matvec(blocks, x), b,
         solve=lambda _, y: solve_factored(factors, y),
@@ -221,13 +243,13 @@ class CoupledFactors:
     schur_perm: jax.Array | None
 
 
-def factorize_coupled(blocks, B, C, D) -> CoupledFactors:
+def factorize_coupled(blocks, B, C, D, identity: tuple = ()) -> CoupledFactors:
     """Factors of ``[[K, B], [C, D]]`` for :func:`solve_coupled`: ``K`` (blocks) factorized
-    once (:func:`factorize`), ``K^-1 B`` for the m columns of B (N,6,m), and the dense LU of
-    the Schur complement ``S = D - C K^-1 B`` (m,m); C (m,N,6), D (m,m). O(N m) + O(m^3).
-    Needs ``K`` and ``S`` nonsingular (``D = 0`` is fine: constraints ``C = B^T``). For
-    m = 0 (static) only ``K`` is factorized."""
-    chain = factorize(blocks)
+    once (:func:`factorize`, also for ``identity``), ``K^-1 B`` for the m columns of B
+    (N,6,m), and the dense LU of the Schur complement ``S = D - C K^-1 B`` (m,m); C
+    (m,N,6), D (m,m). O(N m) + O(m^3). Needs ``K`` and ``S`` nonsingular (``D = 0`` is
+    fine: constraints ``C = B^T``). For m = 0 (static) only ``K`` is factorized."""
+    chain = factorize(blocks, identity)
     m = B.shape[-1]
     if m == 0:
         return CoupledFactors(chain, B, C, None, None, None)
@@ -257,14 +279,15 @@ def solve_coupled(factors: CoupledFactors, b, c, transpose=False):
     return x0 - jnp.einsum("nja,a->nj", factors.KinvB, y), y
 
 
-def implicit_solve_coupled(blocks, B, C, D, b, c):
+def implicit_solve_coupled(blocks, B, C, D, b, c, identity: tuple = ()):
     """``(x, y)`` solving ``[[K, B], [C, D]] [x; y] = [b; c]`` inside
     ``lax.custom_linear_solve``, like :func:`implicit_solve` (differentiable in all of
     blocks, B, C, D, b and c): one :func:`factorize_coupled` serves the solve and the
-    transposed solve of reverse mode. m = 0 (static) is :func:`implicit_solve`."""
+    transposed solve of reverse mode. m = 0 (static) is :func:`implicit_solve`.
+    ``identity``: see :func:`factorize`."""
     if B.shape[-1] == 0:
-        return implicit_solve(blocks, b), c
-    factors = factorize_coupled(blocks, B, C, D)
+        return implicit_solve(blocks, b, identity), c
+    factors = factorize_coupled(blocks, B, C, D, identity)
 
     def matvec(xy):
         x, y = xy

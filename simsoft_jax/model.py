@@ -95,6 +95,17 @@ class Structure:
         """Free-dof mask (n_nodes, 6) as a float64 array (1 free, 0 held)."""
         return jnp.asarray(np.array(self.free, float).reshape(self.n_nodes, 6))
 
+    def identity_nodes(self) -> tuple:
+        """Nodes whose six dofs are all held (e.g. a clamped end). Every tangent assembled
+        with :func:`~simsoft_jax.assembly.apply_constraints` of :meth:`free_mask` has the
+        identity in their rows and columns, which the chain factorization leaves out
+        (:func:`simsoft_jax.linalg.factorize`). Empty with sliding drives: their
+        reduction frees a dof of a held node."""
+        if self.slide_drives:
+            return ()
+        held = ~np.array(self.free, bool).reshape(self.n_nodes, 6).any(axis=1)
+        return tuple(int(i) for i in np.flatnonzero(held))
+
     def rod(self, name: str) -> RodInfo:
         for info in self.rods:
             if info.name == name:

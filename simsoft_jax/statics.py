@@ -266,15 +266,17 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: _NewtonStat
     ``previous``: the frames (R, p) of the last converged level (the reference of the
     quasi-static friction)."""
     tol = jnp.where(lam < 1.0, level_tolerance(model, settings), settings.tolerance) * ref
+    identity = model.structure.identity_nodes()
     r, blocks = residual_and_tangent(model, c.R, c.p, lam, settings.tangent, previous)
     if model.structure.joints:    # rods, bodies and joints: the bordered system
         res, dx, dy = _mechanism_step(model, ref, c.R, c.p, c.y, r, blocks)
     elif model.structure.self_contact:   # rod-rod contact: the bordered system
         r, blocks, cpl = rod_pairs.system(model, c.R, c.p, r, blocks)
-        dx, _ = solve_coupled(factorize_coupled(blocks, *cpl), -r, jnp.zeros(cpl.D.shape[0]))
+        dx, _ = solve_coupled(factorize_coupled(blocks, *cpl, identity), -r,
+                             jnp.zeros(cpl.D.shape[0]))
         res, dy = weighted_norm(model, r), c.dy
     else:
-        res, dx, dy = weighted_norm(model, r), -block_solve(blocks, r), c.dy
+        res, dx, dy = weighted_norm(model, r), -block_solve(blocks, r, identity), c.dy
     rot = jnp.max(jnp.linalg.norm(dx[:, 3:], axis=1))
     cap = jnp.minimum(1.0, settings.max_rotation_step / jnp.maximum(rot, 1e-300))
     dx, dy = dx * cap, dy * cap
@@ -339,7 +341,8 @@ def _mechanism_step(model: Model, ref, R, p, y, r, blocks):
     residuals and the joints' gaps (/ char_length) and rotations times the load scale
     ``ref``, so a converged solve holds its joints to ``tolerance`` of the length."""
     system = mechanisms.couple(model, R, p, y, r, blocks)
-    x, z = solve_coupled(factorize_coupled(system.blocks, system.B, system.C, system.D),
+    x, z = solve_coupled(factorize_coupled(system.blocks, system.B, system.C, system.D,
+                                          model.structure.identity_nodes()),
                          -system.r, -system.r_z)
     forces, gaps = mechanisms.violation_norm(model, system.r_z)
     res = jnp.sqrt(weighted_norm(model, system.r) ** 2 + forces ** 2 + (ref * gaps) ** 2)
@@ -509,17 +512,18 @@ def _implicit_jvp(tangent, primals, tangents):
 
     _, (dr, dr_z) = jax.jvp(perturbed, (model, jnp.zeros_like(moved)), (dmodel, moved))
     r, blocks = residual_and_tangent(model, R, p, 1.0, tangent, previous)
+    identity = model.structure.identity_nodes()
     if model.structure.joints:
         system = mechanisms.couple(model, R, p, y, r, blocks)
         x, z = implicit_solve_coupled(system.blocks, system.B, system.C, system.D, -dr,
-                                      -dr_z)
+                                      -dr_z, identity)
         x, dy = mechanisms.split(model.structure, x, z)
     elif model.structure.self_contact:
         r, blocks, cpl = rod_pairs.system(model, R, p, r, blocks)
-        x, _ = implicit_solve_coupled(blocks, *cpl, -dr, jnp.zeros(cpl.D.shape[0]))
+        x, _ = implicit_solve_coupled(blocks, *cpl, -dr, jnp.zeros(cpl.D.shape[0]), identity)
         dy = jnp.zeros_like(y)
     else:
-        x, dy = implicit_solve(blocks, -dr), jnp.zeros_like(y)
+        x, dy = implicit_solve(blocks, -dr, identity), jnp.zeros_like(y)
     nan_if_failed = jnp.where(converged, 1.0, jnp.nan)
     dxi = jnp.where(held > 0, moved, x) * nan_if_failed
     # d/dt [R exp(t dxi)] at t = 0: (R skew(dxi_w), R dxi_u)

@@ -252,3 +252,51 @@ def test_grad_and_jvp_through_implicit_solve_coupled(n1, n2):
     directional = sum(np.sum(np.asarray(g) * t) for g, t in zip(
         jax.tree_util.tree_leaves(grads), jax.tree_util.tree_leaves(tangents)))
     assert abs(directional - fd) < 1e-7 * abs(fd)
+
+
+@pytest.mark.parametrize("held", [(0,), (0, 4), (3, 7)])
+def test_identity_nodes_left_out_of_the_dense_factorization(held):
+    """Fully held nodes (identity rows and columns after
+    :func:`simsoft_jax.assembly.apply_constraints`) are left out of the dense LU:
+    solves, transposed solves, several right-hand sides and a coupled system agree with
+    NumPy's solve of the whole assembled matrix; so do the implicit-solve derivatives."""
+    from simsoft_jax.assembly import apply_constraints
+
+    rng = np.random.default_rng(7)
+    n = 8
+    mask = np.ones((n, 6))
+    mask[list(held)] = 0.0
+    mask[5, :3] = 0.0                     # a pinned node stays in (partly held)
+    b = rng.normal(size=(n, 6))
+    _, blocks = apply_constraints(jnp.asarray(mask), jnp.asarray(b),
+                                  tuple(map(jnp.asarray, random_blocks(n, rng))))
+    K = dense_np(blocks)
+    factors = linalg.factorize(blocks, identity=held)
+    assert factors.lu.shape == (6 * (n - len(held)),) * 2
+    for transpose in (False, True):
+        expected = np.linalg.solve(K.T if transpose else K, b.ravel()).reshape(n, 6)
+        got = linalg.solve_factored(factors, jnp.asarray(b), transpose)
+        assert rel_err(got, expected) < 1e-12
+    many = rng.normal(size=(n, 6, 3))
+    expected = np.linalg.solve(K, many.reshape(6 * n, 3)).reshape(n, 6, 3)
+    assert rel_err(linalg.solve_factored(factors, jnp.asarray(many)), expected) < 1e-12
+    # a border of m = 4 unknowns with rows on the held nodes too
+    B, C = rng.normal(size=(n, 6, 4)), rng.normal(size=(4, n, 6))
+    D, c = rng.normal(size=(4, 4)) + 5.0 * np.eye(4), rng.normal(size=4)
+    full = np.linalg.solve(coupled_np(blocks, B, C, D), np.concatenate([b.ravel(), c]))
+    x, y = linalg.solve_coupled(linalg.factorize_coupled(blocks, B, C, D, held), b, c)
+    assert rel_err(np.concatenate([np.ravel(x), y]), full) < 1e-12
+
+    def scaled(scale):   # the held rows stay the identity
+        return apply_constraints(jnp.asarray(mask), jnp.asarray(b),
+                                 (blocks[0] * scale,) + tuple(blocks[1:]))[1]
+
+    def solution(scale):
+        return linalg.implicit_solve(scaled(scale), jnp.asarray(b), held)
+
+    def reference(scale):
+        return jnp.linalg.solve(linalg.dense(scaled(scale)),
+                                jnp.asarray(b).ravel()).reshape(n, 6)
+
+    for f in (jax.jacfwd, jax.jacrev):
+        assert rel_err(f(solution)(1.3), f(reference)(1.3)) < 1e-10

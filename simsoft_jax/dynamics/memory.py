@@ -19,7 +19,8 @@ class NewtonMemory(NamedTuple):
     """factors: the factorized iteration matrix (see :func:`linalg.factorize_coupled`; no
     couplings without joints); h: the
     step size (s) it was built for; renew: rebuild it at the start of the next step (the
-    last step had to rebuild it mid-way); vd_history (2,N,6): the accelerations one and two
+    last step had to rebuild it mid-way, or its contraction shows it has aged;
+    :func:`~.newton.newton_step`); vd_history (2,N,6): the accelerations one and two
     accepted steps back; h_history (2,): the sizes (s) of the last and the one-but-last
     accepted steps (0: none yet), for :func:`predicted_increment`; multipliers (M,): the
     joint multipliers of the last accepted step, the next step's guess (M = 0 without
@@ -32,15 +33,16 @@ class NewtonMemory(NamedTuple):
     multipliers: jax.Array
 
 
-def empty_newton_memory(n_nodes: int, couplings: int = 0, multipliers: int = 0
-                        ) -> NewtonMemory:
+def empty_newton_memory(n_nodes: int, couplings: int = 0, multipliers: int = 0,
+                        identity: tuple = ()) -> NewtonMemory:
     """A :class:`NewtonMemory` of the right shapes with no history (the matrix is built at
     first use): ``couplings`` m unknowns beside the N nodes' chains, of which the last
-    ``multipliers`` are joint multipliers (:mod:`simsoft_jax.mechanisms`)."""
+    ``multipliers`` are joint multipliers (:mod:`simsoft_jax.mechanisms`); ``identity``:
+    the nodes the factorization leaves out (:func:`simsoft_jax.linalg.factorize`)."""
     n, m = n_nodes, couplings
     blocks = (jnp.zeros((n, 6, 6)), jnp.zeros((n - 1, 6, 6)), jnp.zeros((n - 1, 6, 6)))
-    shapes = jax.eval_shape(factorize_coupled, blocks, jnp.zeros((n, 6, m)),
-                            jnp.zeros((m, n, 6)), jnp.zeros((m, m)))
+    shapes = jax.eval_shape(lambda *a: factorize_coupled(*a, identity), blocks,
+                            jnp.zeros((n, 6, m)), jnp.zeros((m, n, 6)), jnp.zeros((m, m)))
     zeros = jax.tree_util.tree_map(lambda x: jnp.zeros(x.shape, x.dtype), shapes)
     return NewtonMemory(zeros, jnp.asarray(-1.0), jnp.asarray(True), jnp.zeros((2, n, 6)),
                         jnp.zeros(2), jnp.zeros(multipliers))

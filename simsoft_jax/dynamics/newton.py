@@ -28,6 +28,12 @@ from .scheme import alpha_parameters
 # previous one (linear contraction of modified Newton); otherwise it is rebuilt for the
 # next iteration (see newton_step for which corrections are kept).
 _CONTRACTION_LIMIT = 0.1
+# The matrix is also rebuilt at the start of the next step when the last correction of a
+# step contracted by more than this: a matrix that old would make the next step take a
+# third iteration and soon a rebuild mid-step (followed by a renewal: two builds). Seed's
+# helical scenes, 300 steps: synthetic 894 -> 778 Newton iterations, silicone 1051 -> 871,
+# spring steel unchanged; 0.01-0.05 all gain (benchmarks/README.md).
+_RENEW_CONTRACTION = 0.03
 _RUNNING = -1
 
 
@@ -35,8 +41,8 @@ class _NewtonCarry(NamedTuple):
     """Carry of :func:`newton_step`: the increment w, iterations so far, status (-1
     running, else a Status code), the factors in use and whether to rebuild them (fresh),
     the size of the last kept correction (previous), whether the matrix was rebuilt in
-    this step (rebuilt), the weighted residual norm at the last iterate, and the joint
-    multipliers mu (M,)."""
+    this step (rebuilt), the weighted residual norm at the last iterate, the joint
+    multipliers mu (M,), and the last observed contraction theta (0 before there is one)."""
     w: jax.Array
     iterations: jax.Array
     status: jax.Array
@@ -46,6 +52,7 @@ class _NewtonCarry(NamedTuple):
     rebuilt: jax.Array
     residual: jax.Array
     mu: jax.Array
+    theta: jax.Array
 
 
 def _unknowns(structure, x, z):
@@ -76,7 +83,8 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     (but contracts) is applied and the matrix rebuilt at the new iterate; one that does
     not contract, is not finite or leaves the rotation branch is discarded and the matrix
     rebuilt at the current iterate; the matrix is also rebuilt at the start of a step when
-    the previous step rebuilt it. With a fresh matrix the iteration is exact Newton.
+    the previous step rebuilt it or ended with a contraction above ``_RENEW_CONTRACTION``.
+    With a fresh matrix the iteration is exact Newton.
     Approximating ``S_t`` changes only the convergence rate, not the solution (spec 4.4).
     Converged when the estimated distance to the solution, ``|dw| theta / (1 - theta)``
     with the observed contraction ``theta`` (``|dw|`` itself at the first iteration), is
@@ -94,6 +102,7 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     w0 = predicted_increment(state.v, state.vd, state.a, h, memory, alpha_m, alpha_f, beta)
     w0 = jnp.where(mask > 0, w0, held_increments(model, state, fns.t1))
     sliding = bool(model.structure.slide_drives)
+    identity = model.structure.identity_nodes()
 
     def held(r_z):
         """The constraints hold at the current iterate: the joints' gaps / char_length and
@@ -111,7 +120,8 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
         # a branch also under vmap (any_lane): lanes that keep their matrix select it back
         factors = jax.lax.cond(
             any_lane(c.fresh),
-            lambda w, mu, f: select(c.fresh, factorize_coupled(*fns.system(w, mu)[1:5]), f),
+            lambda w, mu, f: select(c.fresh,
+                                    factorize_coupled(*fns.system(w, mu)[1:5], identity), f),
             lambda _, __, f: f, c.w, c.mu, c.factors)
         dw, dmu = _unknowns(model.structure, *solve_coupled(factors, -r, -r_z))
         if sliding:  # back from slide unknowns to increments (spec: slides_along)
@@ -141,15 +151,17 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
                            Status.MAX_ITERATIONS, status)
         return _NewtonCarry(w_new, c.iterations + 1, status, factors, rebuild,
                             jnp.where(reject, c.previous, size), c.rebuilt | rebuild,
-                            weighted_norm(model, r), mu_new)
+                            weighted_norm(model, r), mu_new,
+                            jnp.where(reject | ~jnp.isfinite(c.previous), c.theta, theta))
 
     stale = memory.renew | (jnp.abs(memory.h - h) > 1e-9 * h)
     init = _NewtonCarry(w0, jnp.array(0), jnp.array(_RUNNING), memory.factors, stale,
                         jnp.array(jnp.inf), jnp.array(False), jnp.array(jnp.inf),
-                        memory.multipliers)
+                        memory.multipliers, jnp.array(0.0))
     c = jax.lax.while_loop(lambda c: c.status == _RUNNING, body, init)
     memory = memory._replace(
-        factors=c.factors, h=jnp.asarray(h, jnp.float64), renew=c.rebuilt,
+        factors=c.factors, h=jnp.asarray(h, jnp.float64),
+        renew=c.rebuilt | (c.theta > _RENEW_CONTRACTION),
         multipliers=jnp.where(c.status == Status.CONVERGED, c.mu, memory.multipliers))
     return StepResult(c.w, c.iterations, c.status, c.residual, memory)
 
@@ -179,7 +191,8 @@ def _implicit_increment_jvp(primals, tangents):
     _, dheld = jax.jvp(held, (model, state, h), (tangents[0], tangents[3], tangents[4]))
     system = step_functions(model, inert, settings.rho_inf, state, h,
                             settings.tangent).system(w, mu)
-    dw, _ = _unknowns(model.structure, *implicit_solve_coupled(*system[1:5], -dF, -dF_z))
+    dw, _ = _unknowns(model.structure, *implicit_solve_coupled(
+        *system[1:5], -dF, -dF_z, model.structure.identity_nodes()))
     return w, jnp.where(mask > 0, dw, dheld)
 
 

@@ -91,11 +91,12 @@ def initial_state(model: Model, t0=0.0, inert=None) -> State:
         nb = 6 * len(s.coupling_nodes)
         r_z = system.r_z.at[nb:].set(
             mechanisms.constraint_curvature(model, model.R0, model.p0, model.v0))
-        x, z = solve_coupled(factorize_coupled(*system[1:5]), -system.r, -r_z)
+        x, z = solve_coupled(factorize_coupled(*system[1:5], s.identity_nodes()), -system.r,
+                             -r_z)
         vd0 = mechanisms.split(s, x, z)[0]
     else:
         g, blocks = apply_constraints(s.free_mask(), g, blocks)
-        vd0 = -block_solve(blocks, g)
+        vd0 = -block_solve(blocks, g, s.identity_nodes())
     return State(model.R0, model.p0, model.v0, vd0, vd0, t0)
 
 
@@ -141,7 +142,8 @@ def first_carry(model: Model, state: State) -> _StepCarry:
     return _StepCarry(state, jnp.array(False), jnp.array(jnp.nan),
                       jnp.array(int(Status.CONVERGED)), jnp.array(int(Status.NOT_RUN)),
                       jnp.array(jnp.nan), empty_newton_memory(
-                          model.structure.n_nodes, *border_sizes(model.structure)))
+                          model.structure.n_nodes, *border_sizes(model.structure),
+                          model.structure.identity_nodes()))
 
 
 def stepper(model: Model, inert, settings: DynamicSettings, differentiable: bool):
