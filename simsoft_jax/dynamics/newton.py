@@ -25,14 +25,19 @@ from .residual import step_functions
 from .scheme import alpha_parameters
 
 # A reused iteration matrix is kept while each correction is at most this fraction of the
-# previous one (linear contraction of modified Newton); otherwise it is rebuilt for the
-# next iteration (see newton_step for which corrections are kept).
+# previous one (linear contraction theta of modified Newton); otherwise it is rebuilt for
+# the next iteration (see newton_step for which corrections are kept).
+_REBUILD_CONTRACTION = 0.2
+# The distance-to-solution estimate |dw| theta / (1 - theta) of the convergence test is
+# used only below this contraction (|dw| itself above it).
 _CONTRACTION_LIMIT = 0.1
 # The matrix is also rebuilt at the start of the next step when the last correction of a
 # step contracted by more than this: a matrix that old would make the next step take a
-# third iteration and soon a rebuild mid-step (followed by a renewal: two builds). Seed's
-# helical scenes, 300 steps: synthetic 894 -> 778 Newton iterations, silicone 1051 -> 871,
-# spring steel unchanged; 0.01-0.05 all gain (benchmarks/README.md).
+# third iteration and soon a rebuild mid-step (followed by a renewal: two builds).
+# Measured on the seed's helical scenes (300 steps; benchmarks/README.md, "Fewer matrix
+# builds"): with the 0.1 rebuild limit used before, renewal at 0.03 took the synthetic
+# scene from 894 to 778 Newton iterations and silicone from 1051 to 871 (0.01-0.05 all
+# gain); with it, a rebuild limit of 0.2 saves builds (synthetic 16.2 -> 15.0 ms).
 _RENEW_CONTRACTION = 0.03
 _RUNNING = -1
 
@@ -79,16 +84,16 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
 
     The factorized iteration matrix ``S_t`` (S61) is reused from earlier iterations and
     earlier steps of the same size h; only the residual is evaluated at each iterate. A
-    correction from a reused matrix that contracts by less than ``_CONTRACTION_LIMIT``
-    (but contracts) is applied and the matrix rebuilt at the new iterate; one that does
-    not contract, is not finite or leaves the rotation branch is discarded and the matrix
+    correction from a reused matrix that is smaller than the previous one but more than
+    ``_REBUILD_CONTRACTION`` times it is applied and the matrix rebuilt at the new
+    iterate; one that does not contract, is not finite or leaves the rotation branch is discarded and the matrix
     rebuilt at the current iterate; the matrix is also rebuilt at the start of a step when
     the previous step rebuilt it or ended with a contraction above ``_RENEW_CONTRACTION``.
     With a fresh matrix the iteration is exact Newton.
     Approximating ``S_t`` changes only the convergence rate, not the solution (spec 4.4).
     Converged when the estimated distance to the solution, ``|dw| theta / (1 - theta)``
-    with the observed contraction ``theta`` (``|dw|`` itself at the first iteration), is
-    below the tolerance. Fails (status) when a fresh matrix gives a non-finite correction
+    with the observed contraction ``theta`` (``|dw|`` itself at the first iteration and
+    for ``theta`` above ``_CONTRACTION_LIMIT``), is below the tolerance. Fails (status) when a fresh matrix gives a non-finite correction
     (NONFINITE) or one that takes a nodal rotation increment to pi/2 (OFF_BRANCH), or at
     ``max_iterations`` (MAX_ITERATIONS). With joints the unknowns are ``w`` and the
     joint multipliers (index-3 form, Arnold & Bruls 2007: the constraints ``g(q_{n+1}) = 0``
@@ -136,7 +141,7 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
         bad = ~finite | off_branch
         theta = size / c.previous
         reject = ~c.fresh & (bad | (theta >= 1.0))
-        rebuild = reject | (~c.fresh & (theta > _CONTRACTION_LIMIT))
+        rebuild = reject | (~c.fresh & (theta > _REBUILD_CONTRACTION))
         keep = reject | ~finite
         w_new = jnp.where(keep, c.w, c.w + jnp.where(finite, dw, 0.0))
         mu_new = jnp.where(keep, c.mu, c.mu + jnp.where(finite, dmu, 0.0))
