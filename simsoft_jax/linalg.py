@@ -109,10 +109,12 @@ class Factors:
     """Factors of a block-tridiagonal ``K`` (:func:`factorize`), a pytree.
 
     kind (static): ``"dense"``: ``lu`` (6F,6F) and ``perm`` (6F,) of :func:`lu` applied to
-    the assembled matrix of the F nodes not in ``identity``, ``C`` and ``lower`` None. ``"thomas"``: the block LU of block
-    Thomas, ``lu`` (N,6,6) and ``perm`` (N,6) of the pivot blocks ``S_i``,
-    ``C`` (N,6,6) the blocks ``C_i = S_i^-1 U_i`` (``C_{N-1} = 0``), ``lower`` (N-1,6,6)
-    the sub-diagonal of ``K``.
+    the assembled matrix of the F nodes not in ``identity``, ``C`` and ``lower`` None.
+    ``"thomas"``: the block LU of block Thomas, ``lu`` (N,6,6) and ``perm`` (N,6) of the
+    pivot blocks ``S_i``, ``C`` (N,6,6) the blocks ``C_i = S_i^-1 U_i``
+    (``C_{N-1} = 0``), ``lower`` (N-1,6,6) the sub-diagonal of ``K``.
+    identity (static): the nodes with identity rows and columns left out of the dense LU
+    (empty for "thomas", which factorizes every node).
     """
     kind: str
     lu: jax.Array

@@ -86,16 +86,17 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     earlier steps of the same size h; only the residual is evaluated at each iterate. A
     correction from a reused matrix that is smaller than the previous one but more than
     ``_REBUILD_CONTRACTION`` times it is applied and the matrix rebuilt at the new
-    iterate; one that does not contract, is not finite or leaves the rotation branch is discarded and the matrix
-    rebuilt at the current iterate; the matrix is also rebuilt at the start of a step when
-    the previous step rebuilt it or ended with a contraction above ``_RENEW_CONTRACTION``.
-    With a fresh matrix the iteration is exact Newton.
+    iterate; one that does not contract, is not finite or leaves the rotation branch is
+    discarded and the matrix rebuilt at the current iterate; the matrix is also rebuilt
+    at the start of a step when the previous step rebuilt it or ended with a contraction
+    above ``_RENEW_CONTRACTION``. With a fresh matrix the iteration is exact Newton.
     Approximating ``S_t`` changes only the convergence rate, not the solution (spec 4.4).
     Converged when the estimated distance to the solution, ``|dw| theta / (1 - theta)``
     with the observed contraction ``theta`` (``|dw|`` itself at the first iteration and
-    for ``theta`` above ``_CONTRACTION_LIMIT``), is below the tolerance. Fails (status) when a fresh matrix gives a non-finite correction
-    (NONFINITE) or one that takes a nodal rotation increment to pi/2 (OFF_BRANCH), or at
-    ``max_iterations`` (MAX_ITERATIONS). With joints the unknowns are ``w`` and the
+    for ``theta`` above ``_CONTRACTION_LIMIT``), is below the tolerance. Fails (status)
+    when a fresh matrix gives a non-finite correction (NONFINITE) or one that takes a
+    nodal rotation increment to pi/2 (OFF_BRANCH), or at ``max_iterations``
+    (MAX_ITERATIONS). With joints the unknowns are ``w`` and the
     joint multipliers (index-3 form, Arnold & Bruls 2007: the constraints ``g(q_{n+1}) = 0``
     and forces ``G^T mu`` at ``t_{n+1}``), solved in the bordered system of
     :mod:`simsoft_jax.mechanisms`; converged also needs the joints to hold to the
