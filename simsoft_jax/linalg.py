@@ -137,13 +137,14 @@ def factorize(blocks, identity: tuple = ()) -> Factors:
     identity (fully held nodes after :func:`simsoft_jax.assembly.apply_constraints`, e.g.
     a clamped rod end). ``K`` is then block diagonal in them and the rest, so the dense LU
     factorizes only the rest (a clamped 11-node chain: 60 instead of 66 unknowns, about
-    15 % less work per factorization and solve) and ``x = b`` on them. Not checked: the
-    caller guarantees it (:meth:`simsoft_jax.model.Structure.identity_nodes`).
+    15 % less work per factorization and solve) and ``x = b`` on them (when every node is
+    one, the whole identity is factorized as it is). Not checked: the caller guarantees
+    it (:meth:`simsoft_jax.model.Structure.identity_nodes`).
     """
     diag, upper, lower = blocks
     n = diag.shape[0]
     if n <= DENSE_LIMIT_NODES:
-        identity = tuple(sorted(set(identity)))
+        identity = tuple(sorted(set(identity))) if len(set(identity)) < n else ()
         rest = [i for i in range(n) if i not in identity] if identity else None
         return Factors("dense", *lu(dense(blocks, rest)), identity=identity)
     pad_u = jnp.concatenate([upper, jnp.zeros((1, 6, 6))])
