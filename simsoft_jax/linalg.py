@@ -46,23 +46,20 @@ def block_matvec(blocks, x):
     return y.at[1:].add(jnp.einsum("nij,nj->ni", lower, x[:-1]))
 
 
-def dense(blocks, nodes=None):
+def dense(blocks):
     """The block-tridiagonal matrix as a dense (6N, 6N) array (the dense factorization,
     tests and debugging): one gather of the blocks by a static (N, N) table of which
-    block (or a zero block) sits where (XLA on CPU would run a scatter as a loop).
-    ``nodes``: a static increasing sequence of node indices, to assemble only their rows
-    and columns (6 len(nodes) square); all nodes when None."""
+    block (or a zero block) sits where (XLA on CPU would run a scatter as a loop)."""
     diag, upper, lower = blocks
     n = diag.shape[0]
-    nodes = np.arange(n) if nodes is None else np.asarray(nodes, dtype=int)
-    k = nodes.size
     zero = jnp.zeros((1, 6, 6), diag.dtype)
     stacked = jnp.concatenate([zero, diag, upper, lower])        # 0, 1.., 1+n.., n+n..
-    i, j = nodes[:, None], nodes[None, :]
-    which = np.where(i == j, 1 + i, 0)
-    which = np.where(j == i + 1, 1 + n + i, which)
-    which = np.where(i == j + 1, 2 * n + j, which)
-    return jnp.swapaxes(stacked[which], 1, 2).reshape(6 * k, 6 * k)
+    idx = np.arange(n)
+    which = np.zeros((n, n), dtype=int)
+    which[idx, idx] = 1 + idx
+    which[idx[:-1], idx[1:]] = 1 + n + idx[:-1]
+    which[idx[1:], idx[:-1]] = 2 * n + idx[:-1]
+    return jnp.swapaxes(stacked[which], 1, 2).reshape(6 * n, 6 * n)
 
 
 # Chains of at most this many nodes are solved by a dense LU of the assembled matrix: on
@@ -108,13 +105,12 @@ def lu_solve(factors, b, transpose=False):
 class Factors:
     """Factors of a block-tridiagonal ``K`` (:func:`factorize`), a pytree.
 
-    kind (static): ``"dense"``: ``lu`` (6F,6F) and ``perm`` (6F,) of :func:`lu` applied to
-    the assembled matrix of the F nodes not in ``identity``, ``C`` and ``lower`` None.
-    ``"thomas"``: the block LU of block Thomas, ``lu`` (N,6,6) and ``perm`` (N,6) of the
-    pivot blocks ``S_i``, ``C`` (N,6,6) the blocks ``C_i = S_i^-1 U_i``
-    (``C_{N-1} = 0``), ``lower`` (N-1,6,6) the sub-diagonal of ``K``.
-    identity (static): the nodes with identity rows and columns left out of the dense LU
-    (empty for "thomas", which factorizes every node).
+    Of the F nodes not in ``identity`` (all N when it is empty), kind (static):
+    ``"dense"``: ``lu`` (6F,6F) and ``perm`` (6F,) of :func:`lu` applied to the assembled
+    matrix, ``C`` and ``lower`` None. ``"thomas"``: the block LU of block Thomas, ``lu``
+    (F,6,6) and ``perm`` (F,6) of the pivot blocks ``S_i``, ``C`` (F,6,6) the blocks
+    ``C_i = S_i^-1 U_i`` (``C_{F-1} = 0``), ``lower`` (F-1,6,6) the sub-diagonal.
+    identity (static): the nodes with identity rows and columns that were left out.
     """
     kind: str
     lu: jax.Array
@@ -135,18 +131,35 @@ def factorize(blocks, identity: tuple = ()) -> Factors:
 
     ``identity``: static indices of nodes whose rows and columns of ``K`` are those of the
     identity (fully held nodes after :func:`simsoft_jax.assembly.apply_constraints`, e.g.
-    a clamped rod end). ``K`` is then block diagonal in them and the rest, so the dense LU
-    factorizes only the rest (a clamped 11-node chain: 60 instead of 66 unknowns, about
-    15 % less work per factorization and solve) and ``x = b`` on them (when every node is
-    one, the whole identity is factorized as it is). Not checked: the caller guarantees
-    it (:meth:`simsoft_jax.model.Structure.identity_nodes`).
+    a clamped rod end). ``K`` is then block diagonal in them and the rest, and the rest is
+    again a block-tridiagonal chain (its blocks across a left-out node are zero): only the
+    rest is factorized (a clamped 11-node rod: a 60 instead of 66 square dense LU, about
+    15 % less work per factorization and solve; N counts the rest) and ``x = b`` on them.
+    When every node is one, the whole identity is factorized as it is. Not checked: the
+    caller guarantees it (:meth:`simsoft_jax.model.Structure.identity_nodes`).
     """
+    n = blocks[0].shape[0]
+    identity = tuple(sorted(set(identity))) if len(set(identity)) < n else ()
+    if identity:
+        rest = _rest(n, identity)
+        linked = (np.diff(rest) == 1)[:, None, None]  # the blocks between rest neighbours
+        diag, upper, lower = blocks
+        blocks = (diag[rest], jnp.where(linked, upper[rest[:-1]], 0.0),
+                  jnp.where(linked, lower[rest[:-1]], 0.0))
+    return dataclasses.replace(_factorize_chain(blocks), identity=identity)
+
+
+def _rest(n: int, identity: tuple) -> np.ndarray:
+    """The node indices not in ``identity``, increasing (static)."""
+    return np.array([i for i in range(n) if i not in identity], dtype=int)
+
+
+def _factorize_chain(blocks) -> Factors:
+    """:func:`factorize` of a chain without identity nodes."""
     diag, upper, lower = blocks
     n = diag.shape[0]
     if n <= DENSE_LIMIT_NODES:
-        identity = tuple(sorted(set(identity))) if len(set(identity)) < n else ()
-        rest = [i for i in range(n) if i not in identity] if identity else None
-        return Factors("dense", *lu(dense(blocks, rest)), identity=identity)
+        return Factors("dense", *lu(dense(blocks)))
     pad_u = jnp.concatenate([upper, jnp.zeros((1, 6, 6))])
     pad_l = jnp.concatenate([jnp.zeros((1, 6, 6)), lower])
 
@@ -163,18 +176,23 @@ def factorize(blocks, identity: tuple = ()) -> Factors:
 def solve_factored(factors: Factors, b, transpose=False):
     """Solve ``K x = b`` (or ``K^T x = b``) with the factors of :func:`factorize`; b, x
     (N,6), or (N,6,k) for k right-hand sides at once."""
+    if not factors.identity:
+        return _solve_chain(factors, b, transpose)
+    n = b.shape[0]
+    rest = _rest(n, factors.identity)
+    x = _solve_chain(factors, b[rest], transpose)
+    # x on the rest, b on the identity nodes: one static gather (no scatter)
+    where = np.arange(rest.size, rest.size + n)
+    where[rest] = np.arange(rest.size)
+    return jnp.concatenate([x, b])[where]
+
+
+def _solve_chain(factors: Factors, b, transpose=False):
+    """:func:`solve_factored` on the chain that was factorized (the rest of the nodes)."""
     n = b.shape[0]
     if factors.kind == "dense":
-        if not factors.identity:
-            x = lu_solve((factors.lu, factors.perm), b.reshape(6 * n, *b.shape[2:]), transpose)
-            return x.reshape(b.shape)
-        rest = np.array([i for i in range(n) if i not in factors.identity])
-        x = lu_solve((factors.lu, factors.perm), b[rest].reshape(6 * rest.size, *b.shape[2:]),
-                     transpose).reshape((rest.size,) + b.shape[1:])
-        # x on the rest, b on the identity nodes: one static gather (no scatter)
-        where = np.arange(rest.size, rest.size + n)
-        where[rest] = np.arange(rest.size)
-        return jnp.concatenate([x, b])[where]
+        x = lu_solve((factors.lu, factors.perm), b.reshape(6 * n, *b.shape[2:]), transpose)
+        return x.reshape(b.shape)
     f, perm, C, lower = factors.lu, factors.perm, factors.C, factors.lower
     zero = jnp.zeros(b.shape[1:])
     if transpose:  # K^T = U^T L^T: U^T z = b forward, then L^T x = z backward
