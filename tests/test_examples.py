@@ -15,7 +15,9 @@ the package:
   is an initial-value problem (internal moment known in world coordinates), integrated
   here with scipy;
 * bending actuator (Fig. 22): the section constant EI_y of a half disc, planar motion and
-  the work-energy theorem.
+  the work-energy theorem;
+* the measured tendon-driven robot (real data): the tendon's circular arc and tension
+  (pure bending by a tendon at a constant offset) and the robot's three-fold symmetry.
 
 Run time: the scripts run in two parallel lanes, each with a persistent JAX compilation
 cache (every compilation kept, one folder per lane and test session), so programs with
@@ -62,6 +64,7 @@ FIGURES = {
     "parallel_robot": ["shapes.png", "sway.png"],
     "catheter_bend": ["snapshots.png", "contact_force.png", "catheter_bend.gif"],
     "gripper": ["grasp.png", "squeeze.png"],
+    "real_tdcr_tendon": ["tip_heights.png"],
 }
 
 
@@ -73,7 +76,7 @@ LANES = (("helical_motion", "spring_steel_rod", "silicone_body", "pure_bending",
           "princeton_replay", "calibrate_princeton", "catheter_bend", "parallel_robot"),
          ("free_planar_rotation", "magellan_catheter", "bending_actuator",
           "dynamic_identification", "princeton_sweep", "tendon_actuation",
-          "contact_catheter", "gripper"))
+          "contact_catheter", "gripper", "real_tdcr_tendon"))
 CACHE_NAMES = ("jax_compilation_cache", "jax_compilation_cache_lane1")
 
 
@@ -388,3 +391,37 @@ def test_gripper(examples):
     force = np.asarray(s["force_N"])
     assert np.abs(force[:, 1]).max() <= 1e-9 * max(s["squeeze_N"])
     assert max(s["max_penetration_m"]) < 1e-2 * s["finger_radius_m"]
+
+
+def test_real_tdcr_tendon_bends_the_backbone_into_the_tendon_arc(examples):
+    """The measured tendon-driven robot (examples/real_tdcr_tendon.py): a tendon at the
+    constant offset r pulled in by delta bends the backbone (EI of the Nitinol tube) into
+    a circular arc of angle theta = delta / r with tension T = EI theta / (L r)
+    (inextensible, weightless). The tube's weight (7 mN against tensions of 3-6 N) and
+    its axial compression T L / EA (0.4 % of delta) move the tip by well under 0.3 % of L
+    and the tension by under 2 %. Checked for all six pulled rows: the tip against the arc
+    in the pulled tendon's direction (world (-sin a, cos a) for a tendon at angle a in the
+    section's y-z plane, whose x is world +z), the tension against T, the loose tendons
+    at zero tension, and the three tendons giving the same height and tension (the
+    robot's symmetry) to 1e-9."""
+    s, _ = examples["real_tdcr_tendon"].result()
+    assert s["converged"]
+    E, L, r = 83e9, 0.25, 6e-3                      # the example's tube and tendons
+    EI = E * math.pi * (1.22e-3**4 - 0.954e-3**4) / 64
+    pulled = [row for row in s["rows"] if max(row["pull_m"]) > 0]
+    assert len(pulled) == 6
+    by_pull = {}
+    for row in pulled:
+        k = int(np.argmax(row["pull_m"]))
+        delta, a = row["pull_m"][k], math.radians((0.0, 120.0, 240.0)[k])
+        theta = delta / r
+        lateral, height = L * (1 - math.cos(theta)) / theta, L * math.sin(theta) / theta
+        arc = np.array([-math.sin(a) * lateral, math.cos(a) * lateral, height])
+        assert np.linalg.norm(np.subtract(row["tip_m"], arc)) < 3e-3 * L
+        tensions = np.asarray(row["tensions_N"])
+        assert abs(tensions[k] - EI * theta / (L * r)) < 2e-2 * EI * theta / (L * r)
+        assert np.all(np.delete(tensions, k) == 0.0)
+        by_pull.setdefault(delta, []).append((row["z_model_m"], tensions[k]))
+    for same in by_pull.values():
+        assert len(same) == 3
+        np.testing.assert_allclose(same, [same[0]] * 3, rtol=1e-9)
