@@ -4,9 +4,13 @@ XLA's CPU backend compiles fused element-wise code with its newer MLIR "fusion e
 by default. For the solver programs here (a few thousand small element-level operations
 inside nested while loops) the classic emitters compile 1.5-1.9x faster and run as fast
 or faster (benchmarks/README.md: Princeton static 3.1 -> 2.1 s, helical synthetic
-dynamic 2.9 -> 1.8 s, run times unchanged or 5-10 % lower). The option is a CPU debug
-option (ignored by other backends); when the installed jaxlib does not know it, plain
-``jax.jit`` is used.
+dynamic 2.9 -> 1.8 s, run times unchanged or 5-10 % lower). Its Eigen kernels (matrix
+products) run single-threaded: the products here are 6x6 to 66x66, too small to gain
+from threads, and a sweep over several host devices then keeps one thread per core
+(1000 Princeton cases on two devices 1.16 -> 1.04 s, one device 1.81 -> 1.69 s; the
+helical rollout unchanged; benchmarks/README.md, "Fewer load levels for the Princeton
+cases"). Both are CPU debug options (ignored by other backends); when the installed
+jaxlib does not know them, plain ``jax.jit`` is used.
 """
 from __future__ import annotations
 
@@ -14,7 +18,7 @@ import functools
 
 import jax
 
-_CANDIDATE = {"xla_cpu_use_fusion_emitters": False}
+_CANDIDATE = {"xla_cpu_use_fusion_emitters": False, "xla_cpu_multi_thread_eigen": False}
 _OPTIONS: dict | None = None
 
 

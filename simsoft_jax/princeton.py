@@ -147,10 +147,16 @@ class Replay(NamedTuple):
 
 
 # The solver settings of the load cases: increments may grow to the whole load
-# (``max_load_step=1``), so an easy case takes fewer than ``load_steps`` levels (a random
-# case: about 15 Newton steps instead of 25; the equilibria agree to 3e-13 m;
-# benchmarks/README.md, "Batched sweeps").
-CASE_SETTINGS = StaticSettings(max_load_step=1.0)
+# (``max_load_step=1``), so an easy case takes fewer than ``load_steps`` levels. The first
+# increment is a quarter of the load, a level is given up (and its increment halved)
+# after 15 Newton steps, and the intermediate levels, which only start the next one, are
+# solved to 0.1 of the load scale (one Newton step each, mostly; the last level is solved
+# to ``tolerance`` as always). 1000 random cases: 3 levels and 10.6 Newton steps per case
+# instead of 5 and 14.4, about 30 % less time, all converged, the equilibria within
+# 3e-13 m of a solve at tolerance 1e-13 (benchmarks/README.md, "Fewer load levels for
+# the Princeton cases").
+CASE_SETTINGS = StaticSettings(max_load_step=1.0, load_steps=4, max_iterations=15,
+                               level_tolerance=0.1)
 
 
 def _vary_case(model: Model, point: dict) -> Model:
