@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 import simsoft_jax as sj
@@ -34,12 +35,39 @@ def machine() -> dict:
         nproc = os.cpu_count()
     return {"cpu": cpu, "nproc": nproc, "load_average": os.getloadavg()[0],
             "jax": jax.__version__, "device": str(jax.devices()[0]),
-            "simsoft_jax": sj.__version__}
+            "simsoft_jax": sj.__version__, "yardstick_ms": yardstick_ms()}
+
+
+def yardstick_ms() -> float:
+    """A fixed workload that puts figures taken on other machines or at other moments on
+    one scale (issue 19): 300 steps of three dense 66 x 66 solves in one ``lax.scan``
+    (the size of the helical scenes' iteration matrix; each matrix depends on the carry,
+    so each is factorized), the fastest of 5 runs after compiling, in ms. Figures of two runs compare after dividing by their yardsticks."""
+    rng = np.random.default_rng(0)
+    a = jnp.asarray(8.0 * np.eye(66) + rng.uniform(-1.0, 1.0, (66, 66)))
+    b = jnp.asarray(rng.uniform(-1.0, 1.0, 66))
+
+    @jax.jit
+    def run(a, b):
+        def step(x, _):
+            for _ in range(3):
+                x = jnp.linalg.solve(a + jnp.diag(x), x + b)   # factorized every time
+            return x / jnp.linalg.norm(x), None
+        return jax.lax.scan(step, b, None, length=300)[0]
+
+    jax.block_until_ready(run(a, b))
+    walls = []
+    for _ in range(5):
+        start = time.perf_counter()
+        jax.block_until_ready(run(a, b))
+        walls.append(time.perf_counter() - start)
+    return 1e3 * min(walls)
 
 
 def describe(info: dict) -> str:
     return (f"machine: {info['cpu']}, nproc {info['nproc']}, jax {info['jax']} "
-            f"({info['device']}), load average {info['load_average']:.2f}")
+            f"({info['device']}), load average {info['load_average']:.2f}, "
+            f"yardstick {info['yardstick_ms']:.2f} ms")
 
 
 def median_time(fn, *args, repeats=5, warmup=1):

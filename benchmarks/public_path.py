@@ -11,7 +11,8 @@ checkout, as wall and as CPU time of the process (CPU time is less
 sensitive to other jobs on a shared machine); the command line ``simsoft-jax run SCENE
 -o out.json`` in a fresh process: the "solve" and "compile" seconds it prints, with and
 without the progress line (``--no-progress``), cold (an empty persistent compilation
-cache) and cached (its second run), and its wall time including the Python start.
+cache) and cached (later runs: the median of ``CACHED_RUNS`` by the printed solve), and
+its wall time including the Python start.
 ``--base DIR``: a checkout of the code before this work (e.g. ``git worktree add
 /tmp/base 47f47af``), measured the same way in the same run, alternating with this
 checkout (cold: an empty cache folder; cached: its second run on that folder; the
@@ -112,6 +113,17 @@ def command_line(scene: Path, root: Path, cache: Path | None, progress: bool) ->
     return {"solve": float(found.group(1)), "compile": float(found.group(2)), "wall": wall}
 
 
+# Command-line runs with a cached program per checkout and scene: a single run's printed
+# solve varies by up to 1.5x from run to run (the first execution of the program in the
+# process, 18-31 ms for the 17 ms synthetic helical scene), so the median is reported.
+CACHED_RUNS = 3
+
+
+def _median_solve(runs: list) -> dict:
+    """The run with the median printed solve time."""
+    return sorted(runs, key=lambda r: r["solve"])[len(runs) // 2]
+
+
 def run(quick: bool = False, out: Path = Path("out/bench"), base: Path | None = None):
     """The table of the module docstring; returns its rows."""
     repeats = 5 if quick else 9
@@ -124,8 +136,13 @@ def run(quick: bool = False, out: Path = Path("out/bench"), base: Path | None = 
         with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as old:
             cold = command_line(path, REPO, Path(cache), progress=True)
             before = command_line(path, base, Path(old), progress=True) if base else None
-            cached = command_line(path, REPO, Path(cache), progress=True)
-            before_cached = command_line(path, base, Path(old), progress=True) if base else None
+            mine, theirs = [], []          # cached: the median of CACHED_RUNS, alternated
+            for _ in range(CACHED_RUNS):
+                mine.append(command_line(path, REPO, Path(cache), progress=True))
+                if base:
+                    theirs.append(command_line(path, base, Path(old), progress=True))
+            cached = _median_solve(mine)
+            before_cached = _median_solve(theirs) if base else None
             quiet = command_line(path, REPO, Path(cache), progress=False)
         now = warm(path, REPO, repeats)
         then = warm(path, base, repeats) if base else None

@@ -117,6 +117,11 @@ def compiled_static_solver(model: Model, settings):
     out_tree = jax.tree_util.tree_structure((Equilibrium(**fields), 0))
     compiled = compile_stored(_solve_static_checked,
                               (model, as_traced(settings), np.bool_(True)), out_tree, "static")
+    # a program's first execution in a process costs more than later ones (one-off
+    # set-up of its kernels): paid here, by a solve to an infinite tolerance (one Newton
+    # pass per load level) with its stability check (dynamics.driver._warm_up)
+    jax.block_until_ready(compiled(model, as_traced(settings.replace(tolerance=np.inf)),
+                                   np.bool_(True)))
     _COMPILED[key] = compiled
     return compiled, time.perf_counter() - start
 
@@ -131,7 +136,8 @@ class Result:
     failed step, None when converged), load_level (static: fraction of the loads
     reached), failed_at (dynamic: time of the failed step or None),
     time ((T,) s, dynamic only), wall_time_s (after compilation; static: with the
-    stability check), compile_time_s, model (read-only NumPy arrays: ``build_model(scene,
+    stability check), compile_time_s (compiling or loading the program and one
+    throw-away execution of it, 0 when it was ready), model (read-only NumPy arrays: ``build_model(scene,
     device=False)``, shared by the runs of equal scenes: :func:`model_of`),
     raw (the :class:`~simsoft_jax.statics.Equilibrium` or
     :class:`~simsoft_jax.dynamics.Trajectory`), stability (static only, None when not
@@ -331,7 +337,7 @@ def run(scene, progress=None, stability: bool = True) -> Result:
     :func:`~simsoft_jax.dynamics.rollout` from t = 0 to exactly t_end (steps of dt,
     shorter closing steps where t_end/dt or save_every does not divide), keeping every
     ``save_every``-th state and the last, in chunks of one compiled program;
-    ``progress(t, t_end)`` is called after each chunk (200 steps). Compilation is cached
+    ``progress(t, t_end)`` is called after each chunk (400 steps). Compilation is cached
     per model structure: in this process, and on disk in JAX's persistent compilation
     cache for later processes (:mod:`simsoft_jax.compile_cache`; off with
     ``SIMSOFT_JAX_CACHE=0``). The Model of a scene is built once per scene content

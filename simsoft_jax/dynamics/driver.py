@@ -8,8 +8,10 @@ ends a run exactly at ``t_end``) reuse it: it is compiled once per model structu
 integer settings. The blocks that pad the last chunk to full length are not run. Chunks are queued without waiting (JAX dispatches asynchronously), so
 the device never waits for the host; with a ``progress`` function the host reads each
 chunk's end time while the next one runs. Blocks after a failed step are skipped. The
-results are copied to the host once, at the end, and assembled with NumPy. A
-KeyboardInterrupt (Ctrl-C) keeps the chunks completed so far.
+results are copied to the host once, at the end (one packed vector per chunk), and
+assembled with NumPy. A KeyboardInterrupt (Ctrl-C) keeps the chunks completed so far.
+A newly compiled or loaded program is run once on a throw-away problem first
+(:func:`_warm_up`), so its first execution's one-off costs count as loading, not solving.
 """
 from __future__ import annotations
 
@@ -30,7 +32,11 @@ from .rollout import Trajectory, first_carry, initial_state, stepper
 from .scheme import DynamicSettings, State
 
 # Steps per chunk (rounded down to whole save blocks): progress is reported this often.
-CHUNK_STEPS = 200
+# Each chunk is one call of the program (~0.5 ms of host work: its ~70 arguments, its
+# outputs); 400 steps make the seed's 300-step scenes one call (sj.run / sj.simulate on
+# the synthetic helical scene 1.14 -> 1.07-1.10 with 200; benchmarks/README.md, "First
+# execution of a program, fewer calls").
+CHUNK_STEPS = 400
 
 
 def compile_key(model: Model, settings):
@@ -67,9 +73,10 @@ def block_steps(dt: float, t_end: float, save_every: int) -> tuple[np.ndarray, i
 def _chunk(model: Model, settings: DynamicSettings, carry, h, fresh):
     """Save blocks of step sizes ``h`` (B,) from ``carry``, or from the start state of
     ``model`` when ``fresh``; trailing blocks of size 0 (the padding of the last chunk)
-    are not run. Returns the carry at the end and per block ``(t, R, p, v, iterations
-    (B, save_every), substeps (B, save_every), multipliers)`` (zeros for blocks not
-    run)."""
+    are not run. Returns the carry at the end and, packed into one float64 vector (one
+    copy to the host, :func:`_unpack`), per block ``(t, R, p, v, iterations (B,
+    save_every), substeps (B, save_every), multipliers)`` (zeros for blocks not run)
+    followed by the final state and the carry's failure fields."""
     inert = element_inertia(model)
     carry = jax.lax.cond(fresh, lambda c: first_carry(model, initial_state(model, 0.0, inert)),
                          lambda c: c, carry)
@@ -91,7 +98,41 @@ def _chunk(model: Model, settings: DynamicSettings, carry, h, fresh):
            jnp.zeros((n, k), jnp.int32), jnp.zeros((n, k), jnp.int32),
            jnp.zeros((n,) + carry.memory.multipliers.shape, carry.memory.multipliers.dtype))
     # padding (h = 0) only follows the run's blocks: run the leading nonzero ones
-    return jax.lax.fori_loop(0, jnp.count_nonzero(h), block, (carry, out))
+    carry, out = jax.lax.fori_loop(0, jnp.count_nonzero(h), block, (carry, out))
+    return carry, jnp.concatenate([jnp.ravel(x).astype(jnp.float64)
+                                   for x in _host_fields(out, carry)])
+
+
+def _host_fields(out, carry) -> list:
+    """What the host reads after a chunk, in the packing order of :func:`_chunk`."""
+    return list(out) + list(carry.state) + [carry.failed, carry.status, carry.cause,
+                                            carry.failed_at, carry.residual]
+
+
+def _unpack(packed: np.ndarray, layout) -> tuple:
+    """Inverse of :func:`_chunk`'s packing: ``(out (7 arrays), state, (failed, status,
+    cause, failed_at, residual))`` as NumPy arrays of the shapes and types in
+    ``layout`` (:func:`_layout`)."""
+    fields, start = [], 0
+    for shape, dtype in layout:
+        size = int(np.prod(shape, dtype=int))
+        fields.append(packed[start:start + size].reshape(shape).astype(dtype))
+        start += size
+    return tuple(fields[:7]), State(*fields[7:13]), tuple(fields[13:])
+
+
+def _layout(carry, blocks: int, save_every: int) -> list:
+    """Shapes and types of the packed fields of a chunk of ``blocks`` save blocks from a
+    carry of the shapes of ``carry`` (host placeholder)."""
+    st = carry.state
+    mu = carry.memory.multipliers
+    out = [((blocks,), np.float64), ((blocks,) + st.R.shape, np.float64),
+           ((blocks,) + st.p.shape, np.float64), ((blocks,) + st.v.shape, np.float64),
+           ((blocks, save_every), np.int32), ((blocks, save_every), np.int32),
+           ((blocks,) + mu.shape, np.float64)]
+    flags = [carry.failed, carry.status, carry.cause, carry.failed_at, carry.residual]
+    return (out + [(np.shape(x), np.float64) for x in st]
+            + [((), np.asarray(x).dtype) for x in flags])
 
 
 def _placeholder_carry(model: Model):
@@ -103,20 +144,22 @@ def _placeholder_carry(model: Model):
     return jax.tree_util.tree_map(lambda x: np.zeros(x.shape, x.dtype), shapes)
 
 
-def _assemble(model: Model, outputs, carry, blocks: int, t_end: float, dt: float,
+def _assemble(model: Model, packed, layout, blocks: int, t_end: float, dt: float,
               interrupted: bool) -> Trajectory:
-    """One host (NumPy) trajectory from the chunks' outputs: the start state, then the
-    saved state of each of the first ``blocks`` blocks; cut after a failure."""
-    # the carry without its Newton memory (the reused matrix: large for large models)
-    R0, p0, v0, outputs, carry = jax.device_get((model.R0, model.p0, model.v0, outputs,
-                                                 carry._replace(memory=None)))
-    t, R, p, v, its, subs, mu = (np.concatenate(x)[:blocks] for x in zip(*outputs))
+    """One host (NumPy) trajectory from the chunks' packed outputs (:func:`_unpack` with
+    ``layout``): the start state, then the saved state of each of the first ``blocks``
+    blocks; cut after a failure."""
+    R0, p0, v0 = (np.asarray(x) for x in (model.R0, model.p0, model.v0))
+    chunks = [_unpack(x, layout) for x in jax.device_get(packed)]
+    final, (failed, status, cause, failed_at, residual) = chunks[-1][1:]
+    t, R, p, v, its, subs, mu = (np.concatenate(x)[:blocks]
+                                 for x in zip(*(out for out, _, _ in chunks)))
     time_ = np.concatenate([[0.0], t])
     R, p, v = (np.concatenate([x0[None], x]) for x0, x in ((R0, R), (p0, p), (v0, v)))
     mu = np.concatenate([np.zeros((1,) + mu.shape[1:]), mu]) if mu.shape[-1] else None
-    converged = not bool(carry.failed)
-    status, cause = int(carry.status), int(carry.cause)
-    failed_at, residual = float(carry.failed_at), float(carry.residual)
+    converged = not bool(failed)
+    status, cause = int(status), int(cause)
+    failed_at, residual = float(failed_at), float(residual)
     if not converged:  # saved states after the failure repeat the last good one
         keep = int(np.searchsorted(time_, failed_at, side="left")) + 1
         time_, R, p, v = time_[:keep], R[:keep], p[:keep], v[:keep]
@@ -127,7 +170,7 @@ def _assemble(model: Model, outputs, carry, blocks: int, t_end: float, dt: float
     elif abs(time_[-1] - t_end) <= 1e-9 * dt:
         time_[-1] = t_end  # round-off of the sum of the steps
     return Trajectory(time_, R, p, v, np.bool_(converged), np.float64(failed_at),
-                      its.reshape(-1), subs.reshape(-1), carry.state, np.int64(status),
+                      its.reshape(-1), subs.reshape(-1), final, np.int64(status),
                       np.int64(cause), np.float64(residual), mu)
 
 
@@ -165,14 +208,17 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
     compiled = {} if compiled is None else compiled
     key = ("rollout", per_chunk) + compile_key(model, settings)
     compile_seconds = 0.0
-    if key not in compiled:  # the program and a placeholder carry of its shapes
+    if key not in compiled:  # the program, a placeholder carry of its shapes, the layout
         start = time.perf_counter()
         carry = _placeholder_carry(model)
-        out_tree = jax.tree_util.tree_structure((carry, (0,) * 7))
-        compiled[key] = (compile_stored(_chunk, (model, settings, carry, h[:per_chunk], True),
-                                        out_tree, "rollout"), carry)
+        out_tree = jax.tree_util.tree_structure((carry, 0))
+        program = compile_stored(_chunk, (model, settings, carry, h[:per_chunk], True),
+                                 out_tree, "rollout")
+        _warm_up(program, model, settings, carry, per_chunk)
+        compiled[key] = (program, carry, _layout(carry, per_chunk, save_every))
         compile_seconds = time.perf_counter() - start
-    (program, carry), outputs, reported, interrupted = compiled[key], [], [0], False
+    (program, carry, layout), outputs, reported = compiled[key], [], [0]
+    interrupted = False
     try:
         for k in range(n_chunks):
             carry, out = program(model, settings, carry, h[k * per_chunk:(k + 1) * per_chunk],
@@ -194,9 +240,26 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
         interrupted = True
     kept = outputs[:done]
     blocks = min(len(kept) * per_chunk, int(np.count_nonzero(h)))
-    traj = _assemble(model, [o for o, _ in kept], kept[-1][1], blocks, t_end, dt,
+    traj = _assemble(model, [o for o, _ in kept], layout, blocks, t_end, dt,
                      interrupted and not bool(kept[-1][1].failed))
     return traj, compile_seconds
+
+
+def _warm_up(program, model: Model, settings, carry, per_chunk: int) -> None:
+    """Run ``program`` once on a throw-away problem so that its first execution's one-off
+    costs fall at load time, not in the first solve.
+
+    The first execution of a compiled or loaded program in a process costs 4-15 ms more
+    than later ones (JAX's call path, then XLA's runtime setting up the kernels the first
+    time they run; benchmarks/README.md, "First execution of a program, fewer calls").
+    The warm-up runs the start state and one save block of steps at an infinite
+    tolerance (every Newton solve ends after its first iteration, the iteration matrix
+    built once), so every kernel of the step runs once at the cost of a step or two; its
+    output is discarded."""
+    h = np.zeros(per_chunk)
+    h[0] = settings.dt
+    jax.block_until_ready(program(model, settings.replace(tolerance=np.float64(np.inf)),
+                                  carry, h, True))
 
 
 def _report(carry, reported: list, progress, t_end: float) -> bool:
