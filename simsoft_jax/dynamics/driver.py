@@ -92,15 +92,23 @@ def _chunk(model: Model, settings: DynamicSettings, carry, h, fresh):
                  c.memory.multipliers)
         return c, tuple(o.at[i].set(x) for o, x in zip(out, saved))
 
-    st, n, k = carry.state, h.shape[0], settings.save_every
-    out = (jnp.zeros(n, st.t.dtype), jnp.zeros((n,) + st.R.shape, st.R.dtype),
-           jnp.zeros((n,) + st.p.shape, st.p.dtype), jnp.zeros((n,) + st.v.shape, st.v.dtype),
-           jnp.zeros((n, k), jnp.int32), jnp.zeros((n, k), jnp.int32),
-           jnp.zeros((n,) + carry.memory.multipliers.shape, carry.memory.multipliers.dtype))
+    out = tuple(jnp.zeros(shape, dtype) for shape, dtype in
+                _block_outputs(carry, h.shape[0], settings.save_every))
     # padding (h = 0) only follows the run's blocks: run the leading nonzero ones
     carry, out = jax.lax.fori_loop(0, jnp.count_nonzero(h), block, (carry, out))
     return carry, jnp.concatenate([jnp.ravel(x).astype(jnp.float64)
                                    for x in _host_fields(out, carry)])
+
+
+def _block_outputs(carry, blocks: int, save_every: int) -> list:
+    """Shapes and types of what :func:`_chunk` saves per block, for ``blocks`` blocks of
+    ``save_every`` steps from a carry of the shapes of ``carry``: ``t, R, p, v,
+    iterations, substeps, multipliers``."""
+    st, mu = carry.state, carry.memory.multipliers
+    return [((blocks,), st.t.dtype), ((blocks,) + st.R.shape, st.R.dtype),
+            ((blocks,) + st.p.shape, st.p.dtype), ((blocks,) + st.v.shape, st.v.dtype),
+            ((blocks, save_every), np.int32), ((blocks, save_every), np.int32),
+            ((blocks,) + mu.shape, mu.dtype)]
 
 
 def _host_fields(out, carry) -> list:
@@ -123,16 +131,9 @@ def _unpack(packed: np.ndarray, layout) -> tuple:
 
 def _layout(carry, blocks: int, save_every: int) -> list:
     """Shapes and types of the packed fields of a chunk of ``blocks`` save blocks from a
-    carry of the shapes of ``carry`` (host placeholder)."""
-    st = carry.state
-    mu = carry.memory.multipliers
-    out = [((blocks,), np.float64), ((blocks,) + st.R.shape, np.float64),
-           ((blocks,) + st.p.shape, np.float64), ((blocks,) + st.v.shape, np.float64),
-           ((blocks, save_every), np.int32), ((blocks, save_every), np.int32),
-           ((blocks,) + mu.shape, np.float64)]
-    flags = [carry.failed, carry.status, carry.cause, carry.failed_at, carry.residual]
-    return (out + [(np.shape(x), np.float64) for x in st]
-            + [((), np.asarray(x).dtype) for x in flags])
+    carry of the shapes of ``carry`` (host placeholder), in :func:`_host_fields` order."""
+    return _block_outputs(carry, blocks, save_every) + [
+        (np.shape(x), np.asarray(x).dtype) for x in _host_fields((), carry)]
 
 
 def _placeholder_carry(model: Model):
