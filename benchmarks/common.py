@@ -2,6 +2,7 @@
 variants, tables and plots. Not a test; nothing here asserts on time."""
 from __future__ import annotations
 
+import functools
 import json
 import os
 import platform
@@ -38,11 +39,15 @@ def machine() -> dict:
             "simsoft_jax": sj.__version__, "yardstick_ms": yardstick_ms()}
 
 
+@functools.lru_cache(maxsize=None)
 def yardstick_ms() -> float:
     """A fixed workload that puts figures taken on other machines or at other moments on
     one scale (issue 19): 300 steps of three dense 66 x 66 solves in one ``lax.scan``
     (the size of the helical scenes' iteration matrix; each matrix depends on the carry,
-    so each is factorized), the fastest of 5 runs after compiling, in ms. Figures of two runs compare after dividing by their yardsticks."""
+    so each is factorized), the fastest of 5 runs after compiling, in ms. Figures of two
+    runs compare after dividing by their yardsticks. Measured once per process, at the
+    first call (:func:`machine` is called at the start and at the end of several
+    scripts)."""
     rng = np.random.default_rng(0)
     a = jnp.asarray(8.0 * np.eye(66) + rng.uniform(-1.0, 1.0, (66, 66)))
     b = jnp.asarray(rng.uniform(-1.0, 1.0, 66))
