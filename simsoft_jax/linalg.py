@@ -14,24 +14,34 @@ Shapes: ``K`` as blocks ``(diag (N,6,6), upper (N-1,6,6), lower (N-1,6,6))`` wit
 D (m,m); y, c (m,). m may be 0.
 
 Method. Chain (spec 3.6): for N <= ``DENSE_LIMIT_NODES`` a partial-pivoting LU of the
-assembled (6N, 6N) matrix; otherwise block Thomas, i.e. the block LU of a tridiagonal
-matrix ``K = L U``: ``L`` block lower bidiagonal with pivot blocks
-``S_i = D_i - L_i C_{i-1}`` (each LU-factorized with partial pivoting) and sub-diagonal
-``lower``, ``U`` unit block upper bidiagonal with ``C_i = S_i^-1 U_i``; forward and back
-substitution are ``lax.scan``s, and the same factors solve ``K^T = U^T L^T``. Coupling: Schur
+assembled (6N, 6N) matrix. Longer chains are first shortened by block cyclic reduction
+(odd-even reduction; e.g. Golub & Van Loan, "Matrix Computations", 4th ed., section
+4.5.4 for the scalar case): the odd-numbered nodes are eliminated at once, their 6x6
+diagonal blocks ``A_o`` inverted in one batch (partial-pivoting LU), which leaves the
+Schur complement ``S = E - C A^-1 B`` on the even-numbered nodes, again a
+block-tridiagonal chain of half the length; levels are repeated until at most
+``DENSE_LIMIT_NODES`` nodes are left, which the dense LU factorizes. It is the block LU
+of the chain in odd-even order: O(N) 6x6 operations in ``log2(N / DENSE_LIMIT_NODES)``
+batched levels (block Thomas, the natural order, needs N sequential steps, each a few
+small library calls: a 16-node chain factorized and solved in 28 instead of 62 us). A
+solve is ``y_o = A^-1 b_o``, ``b_e -= C y_o`` down the levels, the dense solve, then
+``x_o = y_o - (A^-1 B) x_e`` back up; the transposed solve uses the same factors
+(``S^T = E^T - B^T A^-T C^T``): ``b_e -= (A^-1 B)^T b_o`` down, ``x_o = A^-T (b_o - C^T
+x_e)`` up. Coupling: Schur
 complement on the coupling unknowns: with ``K`` factorized once, ``K^-1 B`` (m solves) and a
 dense LU of ``S = D - C K^-1 B`` (m,m);
 ``y = S^-1 (c - C K^-1 b)``, ``x = K^-1 b - (K^-1 B) y``. The transpose uses
 ``S^T = D^T - B^T K^-T C^T`` with the same factors.
 
-Cost: chain factorization and solve O(N) 6x6 operations (a fixed (6N)^3 below the dense
-limit); coupled factorization O(N m) + O(m^3), coupled solve O(N + N m + m^2). m = 0 is
+Cost: chain factorization and solve O(N) 6x6 operations in O(log N) batched steps, plus
+a dense LU of at most ``6 DENSE_LIMIT_NODES`` rows; coupled factorization O(N m) + O(m^3), coupled solve O(N + N m + m^2). m = 0 is
 decided from static shapes and is the chain path itself, at no extra cost.
 """
 from __future__ import annotations
 
 import dataclasses
 import functools
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -62,11 +72,12 @@ def dense(blocks):
     return jnp.swapaxes(stacked[which], 1, 2).reshape(6 * n, 6 * n)
 
 
-# Chains of at most this many nodes are solved by a dense LU of the assembled matrix: on
-# CPU one LAPACK factorization of a (6N, 6N) matrix beats the N sequential 6x6 steps of the
-# block-Thomas scan up to about 12 nodes (benchmarks/README.md), and a factorized dense
-# matrix is re-solved in a few microseconds (modified Newton, IFT).
-DENSE_LIMIT_NODES = 12
+# Chains of at most this many nodes are solved by a dense LU of the assembled matrix, and
+# longer ones are reduced by cyclic reduction to at most this many nodes first: on CPU
+# one LAPACK factorization of a (6N, 6N) matrix is as fast as the batched levels up to
+# 6-8 nodes and slower above (benchmarks/README.md, "Cyclic reduction": 37 against 28 us
+# at 12 and 16 nodes). A lower limit adds levels, each a few more operations to compile.
+DENSE_LIMIT_NODES = 6
 
 
 def lu(A):
@@ -100,34 +111,49 @@ def lu_solve(factors, b, transpose=False):
 
 
 @functools.partial(jax.tree_util.register_dataclass,
-                   data_fields=("lu", "perm", "C", "lower"), meta_fields=("kind", "identity"))
+                   data_fields=("lu", "perm", "levels"), meta_fields=("kind", "identity"))
 @dataclasses.dataclass(frozen=True)
 class Factors:
     """Factors of a block-tridiagonal ``K`` (:func:`factorize`), a pytree.
 
     Of the F nodes not in ``identity`` (all N when it is empty), kind (static):
     ``"dense"``: ``lu`` (6F,6F) and ``perm`` (6F,) of :func:`lu` applied to the assembled
-    matrix, ``C`` and ``lower`` None. ``"thomas"``: the block LU of block Thomas, ``lu``
-    (F,6,6) and ``perm`` (F,6) of the pivot blocks ``S_i``, ``C`` (F,6,6) the blocks
-    ``C_i = S_i^-1 U_i`` (``C_{F-1} = 0``), ``lower`` (F-1,6,6) the sub-diagonal.
+    matrix, ``levels`` empty. ``"cyclic"``: ``levels`` one :class:`Level` per
+    cyclic-reduction level, and ``lu``, ``perm`` the dense factors of the chain left
+    after the last level (at most ``DENSE_LIMIT_NODES`` nodes).
     identity (static): the nodes with identity rows and columns that were left out.
     """
     kind: str
     lu: jax.Array
     perm: jax.Array
-    C: jax.Array | None = None
-    lower: jax.Array | None = None
+    levels: tuple = ()
     identity: tuple = ()
+
+
+class Level(NamedTuple):
+    """One level of block cyclic reduction of a chain of n nodes: its k = n // 2 odd
+    nodes (1, 3, ...) eliminated, m = (n + 1) // 2 even nodes left.
+
+    ``inverse`` (k,6,6): ``A_o^-1`` of their diagonal blocks; ``left``, ``right``
+    (k,6,6): ``A_o^-1 K[o, o-1]`` and ``A_o^-1 K[o, o+1]`` (zero where the neighbour does
+    not exist); ``to_left``, ``to_right`` (m,6,6): ``K[e, e-1]`` and ``K[e, e+1]`` of the
+    even nodes (zero where absent)."""
+    inverse: jax.Array
+    left: jax.Array
+    right: jax.Array
+    to_left: jax.Array
+    to_right: jax.Array
 
 
 def factorize(blocks, identity: tuple = ()) -> Factors:
     """Factors of a block-tridiagonal ``K`` for :func:`solve_factored` (spec 3.6).
 
     Chosen at trace time by size: :func:`lu` of the (6N, 6N) matrix for
-    N <= ``DENSE_LIMIT_NODES``; otherwise the block LU of block Thomas with pivot blocks
-    ``S_i = D_i - L_i C_{i-1}`` (each LU-factorized with partial pivoting) and
-    ``C_i = S_i^-1 U_i``. O(N) 6x6 operations (``lax.scan``); a singular pivot gives
-    non-finite solutions, which the Newton solvers detect and report.
+    N <= ``DENSE_LIMIT_NODES``; otherwise levels of block cyclic reduction (module
+    docstring), whose pivot blocks (the odd nodes' diagonal blocks of each level's chain)
+    are inverted by partial-pivoting LU, until the dense LU takes the chain that is left.
+    O(N) 6x6 operations in ``log2(N / DENSE_LIMIT_NODES)`` batched levels; a singular
+    pivot gives non-finite solutions, which the Newton solvers detect and report.
 
     ``identity``: static indices of nodes whose rows and columns of ``K`` are those of the
     identity (fully held nodes after :func:`simsoft_jax.assembly.apply_constraints`, e.g.
@@ -155,79 +181,128 @@ def _rest(n: int, identity: tuple) -> np.ndarray:
 
 
 def _factorize_chain(blocks) -> Factors:
-    """:func:`factorize` of a chain without identity nodes."""
+    """:func:`factorize` of a chain without identity nodes: cyclic-reduction levels until
+    at most ``DENSE_LIMIT_NODES`` nodes are left, then the dense LU of that chain."""
     diag, upper, lower = blocks
-    n = diag.shape[0]
-    if n <= DENSE_LIMIT_NODES:
+    if diag.shape[0] <= DENSE_LIMIT_NODES:
         return Factors("dense", *lu(dense(blocks)))
-    pad_u = jnp.concatenate([upper, jnp.zeros((1, 6, 6))])
-    pad_l = jnp.concatenate([jnp.zeros((1, 6, 6)), lower])
+    zero = jnp.zeros((1, 6, 6), diag.dtype)
+    # K[i, i-1] and K[i, i+1] of every node, zero at the ends
+    to_left, to_right = jnp.concatenate([zero, lower]), jnp.concatenate([upper, zero])
+    levels = []
+    while diag.shape[0] > DENSE_LIMIT_NODES:
+        level, (diag, to_left, to_right) = _reduce(diag, to_left, to_right)
+        levels.append(level)
+    return Factors("cyclic", *lu(dense((diag, to_right[:-1], to_left[1:]))), tuple(levels))
 
-    def forward(c_prev, inputs):
-        D, U, L = inputs
-        factors = lu(D - L @ c_prev)
-        c = lu_solve(factors, U)
-        return c, (*factors, c)
 
-    _, (f, perm, C) = jax.lax.scan(forward, jnp.zeros((6, 6)), (diag, pad_u, pad_l))
-    return Factors("thomas", f, perm, C, lower)
+def _batched_solve(A, rhs):
+    """``A_k^-1 rhs_k`` for a batch of square matrices A (k,6,6) and rhs (k,6,r): one
+    batched partial-pivoting LU and two batched triangular solves."""
+    factors, _, perm = jax.lax.linalg.lu(A)
+    tri = jax.lax.linalg.triangular_solve
+    x = tri(factors, jnp.take_along_axis(rhs, perm[:, :, None], axis=1), left_side=True,
+            lower=True, unit_diagonal=True)
+    return tri(factors, x, left_side=True, lower=False)
+
+
+# Neighbours in one level of an n-node chain, with k = n // 2 odd nodes (1, 3, ...) and
+# m = (n + 1) // 2 even nodes (0, 2, ...): even node 2i has the odd nodes i - 1 (left)
+# and i (right), odd node 2i + 1 the even nodes i (left) and i + 1 (right). A missing
+# neighbour (past either end) reads zeros: slices and zero padding, no gathers.
+
+def _odd_to_left(y, m: int):
+    """Per even node, the value ``y`` (k, ...) of its left odd neighbour (zero for node 0)."""
+    return jnp.concatenate([jnp.zeros_like(y[:1]), y])[:m]
+
+
+def _odd_to_right(y, m: int):
+    """Per even node, the value ``y`` (k, ...) of its right odd neighbour (zero past the end)."""
+    return jnp.concatenate([y, jnp.zeros_like(y[:1])])[:m]
+
+
+def _even_to_right(x, k: int):
+    """Per odd node, the value ``x`` (m, ...) of its right even neighbour (zero past the end)."""
+    return jnp.concatenate([x, jnp.zeros_like(x[:1])])[1:k + 1]
+
+
+def _interleave(x_even, x_odd):
+    """The chain's values in node order from those of its even (m) and odd (k) nodes."""
+    k = x_odd.shape[0]
+    pairs = jnp.stack([x_even[:k], x_odd], axis=1).reshape((2 * k,) + x_odd.shape[1:])
+    return jnp.concatenate([pairs, x_even[k:]])
+
+
+def _reduce(diag, to_left, to_right):
+    """One level of block cyclic reduction of a chain of n >= 2 nodes given by its
+    diagonal blocks ``diag`` (n,6,6) and couplings ``to_left[i] = K[i, i-1]``,
+    ``to_right[i] = K[i, i+1]`` (n,6,6; zero past the ends): (:class:`Level`, the Schur
+    complement on the even nodes, a chain of (n + 1) // 2 nodes, as
+    ``(diag, to_left, to_right)``)."""
+    n = diag.shape[0]
+    eye = jnp.eye(6, dtype=diag.dtype)
+    m = (n + 1) // 2
+    odd = slice(1, None, 2)
+    # A_o^-1 [I, K[o, o-1], K[o, o+1]] in one batched solve
+    solved = _batched_solve(diag[odd], jnp.concatenate(
+        [jnp.broadcast_to(eye, (n // 2, 6, 6)), to_left[odd], to_right[odd]], axis=2))
+    inverse, left, right = solved[:, :, :6], solved[:, :, 6:12], solved[:, :, 12:]
+    KL, KR = to_left[::2], to_right[::2]
+    # Schur complement on the even nodes: E - C A^-1 B, a chain of m nodes
+    schur = diag[::2] - KL @ _odd_to_left(right, m) - KR @ _odd_to_right(left, m)
+    reduced = (schur, -KL @ _odd_to_left(left, m), -KR @ _odd_to_right(right, m))
+    return Level(inverse, left, right, KL, KR), reduced
 
 
 def solve_factored(factors: Factors, b, transpose=False):
     """Solve ``K x = b`` (or ``K^T x = b``) with the factors of :func:`factorize`; b, x
     (N,6), or (N,6,k) for k right-hand sides at once."""
     if not factors.identity:
-        return _solve_chain(factors, b, transpose)
+        return _solve_levels(factors, factors.levels, b, transpose)
     n = b.shape[0]
     rest = _rest(n, factors.identity)
-    x = _solve_chain(factors, b[rest], transpose)
+    x = _solve_levels(factors, factors.levels, b[rest], transpose)
     # x on the rest, b on the identity nodes: one static gather (no scatter)
     where = np.arange(rest.size, rest.size + n)
     where[rest] = np.arange(rest.size)
     return jnp.concatenate([x, b])[where]
 
 
-def _solve_chain(factors: Factors, b, transpose=False):
-    """:func:`solve_factored` on the chain that was factorized (the rest of the nodes)."""
-    n = b.shape[0]
-    if factors.kind == "dense":
+def _apply(M, x, transpose=False):
+    """``M_k @ x_k`` (or ``M_k^T @ x_k``) for a batch of 6x6 blocks M (k,6,6) and x (k,6)
+    or (k,6,r)."""
+    return jnp.einsum("kji,kj...->ki..." if transpose else "kij,kj...->ki...", M, x)
+
+
+def _solve_levels(factors: Factors, levels, b, transpose):
+    """:func:`solve_factored` on the chain that was factorized (the rest of the nodes),
+    with its cyclic-reduction ``levels`` from the first one (module docstring):
+    down the levels the right-hand side of the even nodes is reduced, the dense factors
+    of ``factors`` solve the chain left after the last level, and back up the odd nodes
+    are recovered."""
+    if not levels:
+        n = b.shape[0]
         x = lu_solve((factors.lu, factors.perm), b.reshape(6 * n, *b.shape[2:]), transpose)
         return x.reshape(b.shape)
-    f, perm, C, lower = factors.lu, factors.perm, factors.C, factors.lower
-    zero = jnp.zeros(b.shape[1:])
-    if transpose:  # K^T = U^T L^T: U^T z = b forward, then L^T x = z backward
-        def forward_t(z_prev, inputs):
-            c_prev, bi = inputs
-            z = bi - c_prev.T @ z_prev
-            return z, z
-
-        pad_c = jnp.concatenate([jnp.zeros((1, 6, 6)), C[:-1]])
-        _, Z = jax.lax.scan(forward_t, zero, (pad_c, b))
-
-        def backward_t(x_next, inputs):
-            f_i, perm_i, L, zi = inputs
-            x = lu_solve((f_i, perm_i), zi - L.T @ x_next, transpose=True)
-            return x, x
-
-        pad_l = jnp.concatenate([lower, jnp.zeros((1, 6, 6))])
-        _, X = jax.lax.scan(backward_t, zero, (f, perm, pad_l, Z), reverse=True)
-        return X
-    pad_l = jnp.concatenate([jnp.zeros((1, 6, 6)), lower])
-
-    def forward(y_prev, inputs):
-        f_i, perm_i, L, bi = inputs
-        y = lu_solve((f_i, perm_i), bi - L @ y_prev)
-        return y, y
-
-    _, Y = jax.lax.scan(forward, zero, (f, perm, pad_l, b))
-
-    def backward(x_next, inputs):
-        c, y = inputs
-        x = y - c @ x_next
-        return x, x
-
-    _, X = jax.lax.scan(backward, zero, (C, Y), reverse=True)
-    return X
+    level, rest = levels[0], levels[1:]
+    m, k = level.to_left.shape[0], level.inverse.shape[0]
+    b_odd, b_even = b[1::2], b[::2]
+    if transpose:   # b_e - (A^-1 B)^T b_o: an even node gets from its odd neighbours
+        reduced = (b_even - _odd_to_left(_apply(level.right, b_odd, True), m)
+                   - _odd_to_right(_apply(level.left, b_odd, True), m))
+    else:
+        y = _apply(level.inverse, b_odd)
+        reduced = (b_even - _apply(level.to_left, _odd_to_left(y, m))
+                   - _apply(level.to_right, _odd_to_right(y, m)))
+    x_even = _solve_levels(factors, rest, reduced, transpose)
+    if transpose:   # A^-T (b_o - C^T x_e): C^T couples an odd node to its even neighbours
+        coupled = (_apply(level.to_right[:k], x_even[:k], True)
+                   + _even_to_right(_apply(level.to_left, x_even, True), k))
+        x_odd = _apply(level.inverse, b_odd - coupled, True)
+    else:
+        x_odd = (y - _apply(level.left, x_even[:k])
+                 - _apply(level.right, _even_to_right(x_even, k)))
+    return _interleave(x_even, x_odd)
 
 
 def block_solve(blocks, b, identity: tuple = ()):

@@ -5,7 +5,7 @@ the joint multipliers form a small coupling set ``z``; the bordered system
 
     [[K, B], [C, D]] [dx; dz] = -[r; r_z]
 
-is solved by :func:`simsoft_jax.linalg.solve_coupled` (block Thomas on the chains, a dense
+is solved by :func:`simsoft_jax.linalg.solve_coupled` (block cyclic reduction on the chains, a dense
 Schur complement on the couplings): O(N m + m^3) for m coupling unknowns.
 
 The joint terms (:mod:`simsoft_jax.terms.joints`) are, per joint, the vector

@@ -11,7 +11,7 @@ cross blocks ``K_ef``, ``K_fe`` between those nodes. With ``y = W U^T x`` the Ne
 
     [[T, U], [W U^T, -I]] [x; y] = [-r; 0]
 
-solved by :func:`simsoft_jax.linalg.solve_coupled` (block Thomas on the chains, a dense
+solved by :func:`simsoft_jax.linalg.solve_coupled` (block cyclic reduction on the chains, a dense
 Schur complement of size 6n): an exact Newton step, and the exact implicit derivative
 (:mod:`simsoft_jax.statics`). ``P = [contact] max_pairs`` and the node capacity
 ``2 P + 2`` (:func:`coupled_nodes`) are static; more candidate pairs or nodes than that

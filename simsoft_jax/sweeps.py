@@ -18,7 +18,8 @@ function, not a new lambda per call) to reuse it::
 
 Every point runs the same Newton iterations as a single solve. Static points run one
 after the other on each device by default (``STATIC_CHUNK`` = 1; a larger chunk vmaps
-that many); large chunks use the flat continuation of
+that many; on several CPU devices only with jaxlib >= 0.11.2, see :func:`_chunk`); large
+chunks use the flat continuation of
 :mod:`simsoft_jax.batched` (one loop of Newton passes, so a vmapped chunk runs as long
 as its longest solve, not the sum of per-level maxima). Dynamic points run one after the
 other on each device by default (``DYNAMIC_CHUNK``). What was
@@ -31,6 +32,7 @@ from typing import Callable
 
 import jax
 import jax.numpy as jnp
+import jaxlib
 import numpy as np
 
 from ._xla import jit
@@ -133,10 +135,28 @@ FLAT_FROM = 64
 DYNAMIC_CHUNK = 1
 
 
-def _chunk(chunk, default: int) -> int:
+# jaxlib before 0.11.2 splits a batched LAPACK call (a vmapped chunk's factorizations)
+# over XLA's CPU thread pool and blocks a pool thread until the pieces are done; with one
+# host device per core, every pool thread can be such a waiting call, and the process
+# hangs (seen: 64 Princeton cases per chunk on two host devices; jaxlib 0.11.2 removed
+# that parallel path). Vmapped chunks on several CPU devices are refused there.
+_LAPACK_BATCHES_WAIT_ON_POOL = tuple(
+    int(part) for part in jaxlib.__version__.split(".")[:3] if part.isdigit()) < (0, 11, 2)
+
+
+def _chunk(chunk, default: int, mesh) -> int:
+    """The chunk size (``default`` for None), checked against the mesh it runs on."""
     chunk = default if chunk is None else int(chunk)
     if chunk < 1:
         raise ValueError(f"chunk: must be >= 1, got {chunk}")
+    devices = mesh.devices.ravel()
+    if (chunk > 1 and devices.size > 1 and devices[0].platform == "cpu"
+            and _LAPACK_BATCHES_WAIT_ON_POOL):
+        raise ValueError(
+            f"chunk: {chunk} points vmapped per chunk on {devices.size} CPU devices can "
+            f"hang jaxlib {jaxlib.__version__} (its batched LAPACK calls wait on the "
+            "thread pool the devices share; fixed in jaxlib 0.11.2): use chunk=1 (the "
+            "default on CPU, one point after the other) or devices=1")
     return chunk
 
 
@@ -171,7 +191,8 @@ def static_sweep(model: Model, vary: Callable, points: dict,
     inspects ``converged`` on the host: call it outside ``jax.jit``/``jax.grad``.
     """
     points = _arrays(points)
-    chunk, mesh = _chunk(chunk, STATIC_CHUNK), batch_mesh(devices)
+    mesh = batch_mesh(devices)
+    chunk = _chunk(chunk, STATIC_CHUNK, mesh)
     if not warm_start:
         return _static(model, points, vary, as_traced(settings), chunk, mesh)
     eq = _static_warm(model, points, vary, settings.replace(
@@ -204,6 +225,6 @@ def dynamic_sweep(model: Model, vary: Callable, points: dict, settings: DynamicS
     other; a larger chunk vmaps that many rollouts, which pays when they are nearly
     identical).
     """
-    points = _arrays(points)
+    points, mesh = _arrays(points), batch_mesh(devices)
     return _dynamic(model, points, vary, as_traced(settings),
-                    _chunk(chunk, DYNAMIC_CHUNK), batch_mesh(devices))
+                    _chunk(chunk, DYNAMIC_CHUNK, mesh), mesh)

@@ -1,5 +1,5 @@
 """Block linear algebra of mechanisms (:mod:`simsoft_jax.linalg`): chains on both paths
-(dense LU, block Thomas), chains coupled through a Schur complement (random couplings, a
+(dense LU, block cyclic reduction), chains coupled through a Schur complement (random couplings, a
 weld between two rods, closed loops, no coupling), transposed solves and derivatives
 through ``implicit_solve_coupled``, all against dense NumPy solves of the assembled
 matrix."""
@@ -91,7 +91,7 @@ def check_coupled(blocks, B, C, D, rng, homogeneous=False):
     return b[0], *map(np.asarray, solutions[0])
 
 
-@pytest.mark.parametrize("n", [3, LIMIT, LIMIT + 1, 40])
+@pytest.mark.parametrize("n", [3, LIMIT, LIMIT + 1, 16, 17, 40])
 def test_chain_solves_match_numpy_on_both_paths(n):
     rng = np.random.default_rng(n)
     blocks = random_blocks(n, rng)
@@ -101,7 +101,7 @@ def test_chain_solves_match_numpy_on_both_paths(n):
     @jax.jit
     def solves(blocks, b, bk):  # one factorization serves all
         factors = linalg.factorize(blocks)
-        assert factors.kind == ("dense" if n <= LIMIT else "thomas")
+        assert factors.kind == ("dense" if n <= LIMIT else "cyclic")
         return ([linalg.solve_factored(factors, rhs, transpose)
                  for transpose in (False, True) for rhs in (b, bk)],
                 linalg.block_solve(blocks, b), linalg.dense(blocks),
@@ -215,7 +215,7 @@ def dense_derivatives(blocks, B, C, D, b, c, w_x, w_y):
 
 @pytest.mark.parametrize("n1,n2", [(4, 5), (12, 13)])
 def test_grad_and_jvp_through_implicit_solve_coupled(n1, n2):
-    """A weld (D = 0) on the dense path (9 nodes) and the block-Thomas path (25 nodes):
+    """A weld (D = 0) on the dense path (9 nodes) and the cyclic-reduction path (25 nodes):
     reverse mode (the transposed coupled solve) and forward mode against the dense formulas,
     and the gradient in one direction against central finite differences."""
     rng = np.random.default_rng(n1 * n2)
@@ -259,7 +259,7 @@ def test_grad_and_jvp_through_implicit_solve_coupled(n1, n2):
 def test_identity_nodes_left_out_of_the_factorization(n, held):
     """Fully held nodes (identity rows and columns after
     :func:`simsoft_jax.assembly.apply_constraints`) are left out of the chain's
-    factorization (dense LU and block Thomas): solves, transposed solves, several
+    factorization (dense LU and block cyclic reduction): solves, transposed solves, several
     right-hand sides and a coupled system agree with NumPy's solve of the whole assembled
     matrix; so do the implicit-solve derivatives."""
     from simsoft_jax.assembly import apply_constraints
@@ -274,7 +274,9 @@ def test_identity_nodes_left_out_of_the_factorization(n, held):
     K = dense_np(blocks)
     factors = linalg.factorize(blocks, identity=held)
     kept = n - len(held) if len(held) < n else n     # all held: nothing left out
-    assert factors.lu.shape[0] == (6 * kept if factors.kind == "dense" else kept)
+    # each kept node is eliminated at one cyclic-reduction level or in the dense LU left
+    assert (sum(level.inverse.shape[0] for level in factors.levels)
+            + factors.lu.shape[0] // 6) == kept
     for transpose in (False, True):
         expected = np.linalg.solve(K.T if transpose else K, b.ravel()).reshape(n, 6)
         got = linalg.solve_factored(factors, jnp.asarray(b), transpose)

@@ -115,6 +115,12 @@ def test_sweep_sharded_over_two_host_devices(tmp_path, model):
     # the implicit-function gradient through the sharded sweep against a central difference
     np.testing.assert_allclose(r["grad"], r["fd_grad"], rtol=1e-6)
     assert r["grad"] < 0      # a stiffer strip deflects less
+    # vmapped chunks on two CPU devices can hang jaxlib < 0.11.2: refused, with the reason
+    if sweeps._LAPACK_BATCHES_WAIT_ON_POOL:
+        assert "chunk: 64 points vmapped per chunk on 2 CPU devices" in r["chunk_refused"]
+        assert "use chunk=1" in r["chunk_refused"]
+    else:
+        assert r["chunk_refused"] == ""
 
 
 @pytest.mark.slow
