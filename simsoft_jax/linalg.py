@@ -111,23 +111,26 @@ def lu_solve(factors, b, transpose=False):
 
 
 @functools.partial(jax.tree_util.register_dataclass,
-                   data_fields=("lu", "perm", "levels"), meta_fields=("kind", "identity"))
+                   data_fields=("lu", "perm", "levels"), meta_fields=("identity",))
 @dataclasses.dataclass(frozen=True)
 class Factors:
     """Factors of a block-tridiagonal ``K`` (:func:`factorize`), a pytree.
 
-    Of the F nodes not in ``identity`` (all N when it is empty), kind (static):
-    ``"dense"``: ``lu`` (6F,6F) and ``perm`` (6F,) of :func:`lu` applied to the assembled
-    matrix, ``levels`` empty. ``"cyclic"``: ``levels`` one :class:`Level` per
-    cyclic-reduction level, and ``lu``, ``perm`` the dense factors of the chain left
-    after the last level (at most ``DENSE_LIMIT_NODES`` nodes).
+    Of the F nodes not in ``identity`` (all N when it is empty): ``levels`` one
+    :class:`Level` per cyclic-reduction level (none for F <= ``DENSE_LIMIT_NODES``), and
+    ``lu`` (6D,6D), ``perm`` (6D,) of :func:`lu` applied to the assembled chain of the D
+    nodes left after the last level (D = F without levels).
     identity (static): the nodes with identity rows and columns that were left out.
     """
-    kind: str
     lu: jax.Array
     perm: jax.Array
     levels: tuple = ()
     identity: tuple = ()
+
+    @property
+    def kind(self) -> str:
+        """``"dense"`` (the dense LU alone) or ``"cyclic"`` (reduction levels first)."""
+        return "cyclic" if self.levels else "dense"
 
 
 class Level(NamedTuple):
@@ -185,7 +188,7 @@ def _factorize_chain(blocks) -> Factors:
     at most ``DENSE_LIMIT_NODES`` nodes are left, then the dense LU of that chain."""
     diag, upper, lower = blocks
     if diag.shape[0] <= DENSE_LIMIT_NODES:
-        return Factors("dense", *lu(dense(blocks)))
+        return Factors(*lu(dense(blocks)))
     zero = jnp.zeros((1, 6, 6), diag.dtype)
     # K[i, i-1] and K[i, i+1] of every node, zero at the ends
     to_left, to_right = jnp.concatenate([zero, lower]), jnp.concatenate([upper, zero])
@@ -193,17 +196,14 @@ def _factorize_chain(blocks) -> Factors:
     while diag.shape[0] > DENSE_LIMIT_NODES:
         level, (diag, to_left, to_right) = _reduce(diag, to_left, to_right)
         levels.append(level)
-    return Factors("cyclic", *lu(dense((diag, to_right[:-1], to_left[1:]))), tuple(levels))
+    return Factors(*lu(dense((diag, to_right[:-1], to_left[1:]))), tuple(levels))
 
 
 def _batched_solve(A, rhs):
-    """``A_k^-1 rhs_k`` for a batch of square matrices A (k,6,6) and rhs (k,6,r): one
-    batched partial-pivoting LU and two batched triangular solves."""
-    factors, _, perm = jax.lax.linalg.lu(A)
-    tri = jax.lax.linalg.triangular_solve
-    x = tri(factors, jnp.take_along_axis(rhs, perm[:, :, None], axis=1), left_side=True,
-            lower=True, unit_diagonal=True)
-    return tri(factors, x, left_side=True, lower=False)
+    """``A_k^-1 rhs_k`` for a batch of square matrices A (k,6,6) and rhs (k,6,r):
+    :func:`lu` and :func:`lu_solve` vmapped (one batched LAPACK factorization and two
+    batched triangular solves)."""
+    return jax.vmap(lambda a, r: lu_solve(lu(a), r))(A, rhs)
 
 
 # Neighbours in one level of an n-node chain, with k = n // 2 odd nodes (1, 3, ...) and
