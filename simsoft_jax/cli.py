@@ -78,7 +78,7 @@ def _run(args) -> int:
     detail = (f"{len(result.time)} saved states" if result.time is not None
               else f"residual {result.residual_norm:.3g}")
     print(f"{result.name or args.scene}: {status}; {result.newton_iterations} Newton iterations, "
-          f"{detail}, solve {result.wall_time_s:.3f} s, "
+          f"{detail}, solve {result.wall_time_s:.4f} s, "
           f"compile {result.compile_time_s:.2f} s"
           + (f"; wrote {args.output}" if args.output else ""))
     if not result.converged:

@@ -186,17 +186,47 @@ def _rest(n: int, identity: tuple) -> np.ndarray:
 def _factorize_chain(blocks) -> Factors:
     """:func:`factorize` of a chain without identity nodes: cyclic-reduction levels until
     at most ``DENSE_LIMIT_NODES`` nodes are left, then the dense LU of that chain."""
+    levels, left = _reduce_chain(blocks, _batched_solve)
+    return Factors(*lu(dense(left)), levels)
+
+
+def _reduce_chain(blocks, batched_solve):
+    """Cyclic-reduction levels of a chain ``(diag, upper, lower)`` until at most
+    ``DENSE_LIMIT_NODES`` nodes are left (none for a chain that short), the odd nodes'
+    pivot blocks solved by ``batched_solve`` (as :func:`_batched_solve`): (the
+    :class:`Level` tuple, the chain left as ``(diag, upper, lower)``)."""
     diag, upper, lower = blocks
     if diag.shape[0] <= DENSE_LIMIT_NODES:
-        return Factors(*lu(dense(blocks)))
+        return (), blocks
     zero = jnp.zeros((1, 6, 6), diag.dtype)
     # K[i, i-1] and K[i, i+1] of every node, zero at the ends
     to_left, to_right = jnp.concatenate([zero, lower]), jnp.concatenate([upper, zero])
     levels = []
     while diag.shape[0] > DENSE_LIMIT_NODES:
-        level, (diag, to_left, to_right) = _reduce(diag, to_left, to_right)
+        level, (diag, to_left, to_right) = _reduce(diag, to_left, to_right, batched_solve)
         levels.append(level)
-    return Factors(*lu(dense((diag, to_right[:-1], to_left[1:]))), tuple(levels))
+    return tuple(levels), (diag, to_right[:-1], to_left[1:])
+
+
+def positive_definite(diag, lower):
+    """Whether the symmetric block-tridiagonal matrix with diagonal blocks ``diag``
+    (N,6,6) and ``lower[i] = K[i+1, i]`` (N-1,6,6) is positive definite (bool array).
+
+    The chain is reduced as :func:`factorize` does, with Cholesky factors of the pivot
+    blocks instead of LU (a symmetric matrix is positive definite iff its pivot blocks
+    and the Schur complement left are, Haynsworth), and the chain left is given to one
+    Cholesky factorization: a failed factorization is NaN and propagates to it. O(N) 6x6
+    operations in a few batched calls; an indefinite or singular matrix gives False."""
+    _, left = _reduce_chain((diag, jnp.swapaxes(lower, -1, -2), lower),
+                            _batched_cholesky_solve)
+    return jnp.all(jnp.isfinite(_cholesky(dense(left))))
+
+
+def _cholesky(A):
+    """Lower Cholesky factor of symmetric positive definite A (..., n, n) from its lower
+    triangle, NaN where A is not positive definite. ``jnp.linalg.cholesky`` first
+    symmetrizes A, which cost 5x the factorization of a batch of 6x6 blocks on CPU."""
+    return jax.lax.linalg.cholesky(A, symmetrize_input=False)
 
 
 def _batched_solve(A, rhs):
@@ -204,6 +234,15 @@ def _batched_solve(A, rhs):
     :func:`lu` and :func:`lu_solve` vmapped (one batched LAPACK factorization and two
     batched triangular solves)."""
     return jax.vmap(lambda a, r: lu_solve(lu(a), r))(A, rhs)
+
+
+def _batched_cholesky_solve(A, rhs):
+    """:func:`_batched_solve` for symmetric positive definite A by Cholesky factors (NaN
+    where a block is not positive definite; only the lower triangle of A is read)."""
+    tri = jax.lax.linalg.triangular_solve
+    c = _cholesky(A)
+    x = tri(c, rhs, left_side=True, lower=True)
+    return tri(c, x, left_side=True, lower=True, transpose_a=True)
 
 
 # Neighbours in one level of an n-node chain, with k = n // 2 odd nodes (1, 3, ...) and
@@ -233,18 +272,18 @@ def _interleave(x_even, x_odd):
     return jnp.concatenate([pairs, x_even[k:]])
 
 
-def _reduce(diag, to_left, to_right):
+def _reduce(diag, to_left, to_right, batched_solve):
     """One level of block cyclic reduction of a chain of n >= 2 nodes given by its
     diagonal blocks ``diag`` (n,6,6) and couplings ``to_left[i] = K[i, i-1]``,
     ``to_right[i] = K[i, i+1]`` (n,6,6; zero past the ends): (:class:`Level`, the Schur
     complement on the even nodes, a chain of (n + 1) // 2 nodes, as
-    ``(diag, to_left, to_right)``)."""
+    ``(diag, to_left, to_right)``). ``batched_solve``: as :func:`_batched_solve`."""
     n = diag.shape[0]
     eye = jnp.eye(6, dtype=diag.dtype)
     m = (n + 1) // 2
     odd = slice(1, None, 2)
     # A_o^-1 [I, K[o, o-1], K[o, o+1]] in one batched solve
-    solved = _batched_solve(diag[odd], jnp.concatenate(
+    solved = batched_solve(diag[odd], jnp.concatenate(
         [jnp.broadcast_to(eye, (n // 2, 6, 6)), to_left[odd], to_right[odd]], axis=2))
     inverse, left, right = solved[:, :, :6], solved[:, :, 6:12], solved[:, :, 12:]
     KL, KR = to_left[::2], to_right[::2]

@@ -25,10 +25,12 @@ from ._xla import jit
 from .compile_cache import compile_stored
 from .dynamics import Trajectory, rollout
 from .dynamics.driver import compile_key
+from .mechanisms import multiplier_count
 from .model import Model, build_model
 from .output import finite_or_none, write_atomic
+from .packing import pack, unpack
 from .scene import Scene, load_scene
-from .statics import Equilibrium, _solve_static, as_traced, settings_from_scene
+from .statics import Equilibrium, as_traced, equilibrium, settings_from_scene
 from .stability import negative_eigenvalues
 from .status import Status
 
@@ -56,6 +58,7 @@ class _CompiledCache(collections.OrderedDict):
 
 _COMPILED = _CompiledCache()
 _MODELS = _CompiledCache(size=8)
+_ON_DEVICE = _CompiledCache(size=8)
 
 
 def _scene_key(scene: Scene) -> bytes | None:
@@ -89,15 +92,58 @@ def _solve_static_checked(model: Model, settings, check):
     """The static solve and, when ``check`` (a traced bool) and it converged, the count
     of negative eigenvalues of the tangent at the equilibrium
     (:func:`~simsoft_jax.stability.negative_eigenvalues`; -1 when not counted), in one
-    program. Structures with rod-rod contact are never checked: the count reads the
-    chains' tangent, which lacks it."""
-    eq = _solve_static(model, settings)
+    program. Returns ``(R, p, rest)``: the frames, and the other fields of the
+    equilibrium with the count packed into one vector (:func:`~simsoft_jax.packing.pack`
+    of ``(eq without R and p, count)``, :func:`static_layout`): three copies to the host
+    instead of a dozen. (Packing the frames as well made the whole solve ~10 % slower:
+    the loops then keep them in XLA's temporary buffers.) Structures with rod-rod contact
+    are never checked: the count reads the chains' tangent, which lacks it."""
+    eq = equilibrium(model, settings, keep_tangent=True)
+    tangent, eq = eq.tangent, eq._replace(tangent=None)
     if model.structure.self_contact:
-        return eq, jnp.array(-1)
-    count = jax.lax.cond(check & eq.converged,
-                         lambda: negative_eigenvalues(model, eq).astype(int),
-                         lambda: jnp.array(-1))
+        count = jnp.array(-1)
+    else:
+        count = jax.lax.cond(check & eq.converged,
+                             lambda: negative_eigenvalues(model, eq, tangent).astype(int),
+                             lambda: jnp.array(-1))
+    return eq.R, eq.p, pack((eq._replace(R=None, p=None), count))
+
+
+def static_layout(structure) -> tuple:
+    """Shapes and types of the packed ``(Equilibrium without R and p, count)`` of
+    :func:`_solve_static_checked` for a model of ``structure``
+    (:class:`jax.ShapeDtypeStruct` leaves, None for absent fields), to unpack its output
+    without tracing it."""
+    def like(shape, dtype=np.float64):
+        return jax.ShapeDtypeStruct(shape, dtype)
+
+    n, count = structure.n_nodes, like((), np.int64)
+    frames = (like((n, 3, 3)), like((n, 3)))
+    eq = Equilibrium(
+        None, None, converged=like((), np.bool_), iterations=count, residual_norm=like(()),
+        load_level=like(()), load_steps=count, step_failures=count, status=count,
+        cause=count,
+        multipliers=like((multiplier_count(structure),)) if structure.joints else None,
+        tendon_tension=(like((len(structure.tendon_names),))
+                        if structure.tendon_names else None),
+        previous=frames if structure.has_friction else None)
     return eq, count
+
+
+def _program_model(model: Model) -> Model:
+    """The copy of ``model`` (from :func:`model_of`) to hand a compiled static program:
+    its host arrays at the first run (the program transfers them, ~0.15 ms, against ~1 ms
+    for a separate transfer of its ~60 arrays), a device copy kept from the second run of
+    the same model on (no transfer at later calls: ~0.1 ms of a 3.5 ms Princeton solve)."""
+    key = id(model)
+    if key not in _ON_DEVICE:
+        _ON_DEVICE[key] = (model, None)   # the model held: its id stays its own
+        return model
+    _, device = _ON_DEVICE[key]
+    if device is None:
+        device = jax.device_put(model)
+        _ON_DEVICE[key] = (model, device)
+    return device
 
 
 def compiled_static_solver(model: Model, settings):
@@ -105,23 +151,25 @@ def compiled_static_solver(model: Model, settings):
     integer settings, and the seconds spent compiling it now (0.0 when it was already
     compiled in this process). Call it as ``solver(model, as_traced(settings), check)``
     (``check`` a bool): it returns the :class:`~simsoft_jax.statics.Equilibrium` and the
-    count of negative eigenvalues (-1: not counted)."""
+    count of negative eigenvalues (-1: not counted), as NumPy arrays (one copy to the
+    host)."""
     key = ("static",) + compile_key(model, settings)
     if key in _COMPILED:
         return _COMPILED[key], 0.0
     start = time.perf_counter()
-    fields = dict.fromkeys(Equilibrium._fields, 0)
-    fields["tendon_tension"] = 0 if model.structure.tendon_names else None
-    fields["multipliers"] = 0 if model.structure.joints else None
-    fields["previous"] = (0, 0) if model.structure.has_friction else None
-    out_tree = jax.tree_util.tree_structure((Equilibrium(**fields), 0))
-    compiled = compile_stored(_solve_static_checked,
-                              (model, as_traced(settings), np.bool_(True)), out_tree, "static")
+    program = compile_stored(_solve_static_checked,
+                             (model, as_traced(settings), np.bool_(True)),
+                             jax.tree_util.tree_structure((0, 0, 0)), "static")
+    layout = static_layout(model.structure)
+
+    def compiled(*args):
+        R, p, packed = jax.device_get(program(*args))
+        eq, count = unpack(packed, layout)
+        return eq._replace(R=R, p=p), count
     # a program's first execution in a process costs more than later ones (one-off
     # set-up of its kernels): paid here, by a solve to an infinite tolerance (one Newton
     # pass per load level) with its stability check (dynamics.driver._warm_up)
-    jax.block_until_ready(compiled(model, as_traced(settings.replace(tolerance=np.inf)),
-                                   np.bool_(True)))
+    compiled(model, as_traced(settings.replace(tolerance=np.inf)), np.bool_(True))
     _COMPILED[key] = compiled
     return compiled, time.perf_counter() - start
 
@@ -356,9 +404,8 @@ def run(scene, progress=None, stability: bool = True) -> Result:
     settings = settings_from_scene(scene.solver)
     solver, compile_time = compiled_static_solver(model, settings)
     start = time.perf_counter()
-    equilibrium, count = jax.device_get(solver(model, as_traced(settings),
-                                               np.bool_(stability)))
+    eq, count = solver(_program_model(model), as_traced(settings), np.bool_(stability))
     wall = time.perf_counter() - start
     checked = None if count < 0 else {"negative_eigenvalues": int(count),
                                       "stable": int(count) == 0}
-    return Result(scene, model, equilibrium, wall, compile_time, checked)
+    return Result(scene, model, eq, wall, compile_time, checked)

@@ -128,7 +128,10 @@ class Equilibrium(NamedTuple):
     displacement-controlled tendons (:mod:`simsoft_jax.tendon_control`); None when the
     model has no tendons; previous: the frames (R, p) of the load level before the last
     one, the reference of the quasi-static friction there
-    (:mod:`simsoft_jax.terms.static_friction`); None without friction."""
+    (:mod:`simsoft_jax.terms.static_friction`); None without friction. tangent: the
+    chains' tangent blocks ``(diag, upper, lower)`` at the equilibrium under the full
+    loads, from the last Newton pass (see :func:`equilibrium`, ``keep_tangent``); None
+    unless asked for."""
     R: jax.Array
     p: jax.Array
     converged: jax.Array
@@ -142,6 +145,7 @@ class Equilibrium(NamedTuple):
     multipliers: jax.Array | None = None
     tendon_tension: jax.Array | None = None
     previous: tuple | None = None
+    tangent: tuple | None = None
 
     def message(self) -> str:
         """How the solve ended, in words (concrete, unbatched results)."""
@@ -223,7 +227,8 @@ class _NewtonState(NamedTuple):
     step (size_base) and the residual at the base (res_base), the residual at the last
     evaluated trial (res), rejected trials in a row (backtracks), accepted Newton steps
     (iterations), and the status: -1 running, else a :class:`Status` code. y, base_y,
-    dy: the joint multipliers like R, p and dx (empty without joints)."""
+    dy: the joint multipliers like R, p and dx (empty without joints). tangent: the
+    chains' tangent blocks evaluated at the last pass's trial (at (R, p) once done)."""
     R: jax.Array
     p: jax.Array
     base_R: jax.Array
@@ -239,6 +244,7 @@ class _NewtonState(NamedTuple):
     backtracks: jax.Array
     iterations: jax.Array
     status: jax.Array
+    tangent: tuple
 
 
 _RUNNING = -1
@@ -268,6 +274,7 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: _NewtonStat
     tol = jnp.where(lam < 1.0, level_tolerance(model, settings), settings.tolerance) * ref
     identity = model.structure.identity_nodes()
     r, blocks = residual_and_tangent(model, c.R, c.p, lam, settings.tangent, previous)
+    tangent = blocks
     if model.structure.joints:    # rods, bodies and joints: the bordered system
         res, dx, dy = _mechanism_step(model, ref, c.R, c.p, c.y, r, blocks)
     elif model.structure.self_contact:   # rod-rod contact: the bordered system
@@ -317,7 +324,7 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: _NewtonStat
         size_base=jnp.where(accept, size, c.size_base), res=res,
         res_base=jnp.where(accept, res, c.res_base),
         backtracks=jnp.where(accept, 0, c.backtracks + 1),
-        iterations=iterations, status=status)
+        iterations=iterations, status=status, tangent=tangent)
 
 
 def newton_start(R, p, y) -> _NewtonState:
@@ -327,12 +334,21 @@ def newton_start(R, p, y) -> _NewtonState:
     return _NewtonState(R=R, p=p, base_R=R, base_p=p, dx=jnp.zeros(p.shape[:1] + (6,)),
                         y=y, base_y=y, dy=jnp.zeros_like(y),
                         step=jnp.array(1.0), size_base=inf, res=inf, res_base=inf,
-                        backtracks=zero, iterations=zero, status=jnp.array(_RUNNING))
+                        backtracks=zero, iterations=zero, status=jnp.array(_RUNNING),
+                        tangent=_no_tangent(p))
+
+
+def _no_tangent(p):
+    """Zero tangent blocks ``(diag, upper, lower)`` for the N nodes of positions p (N,3)."""
+    n = p.shape[0]
+    return (jnp.zeros((n, 6, 6), p.dtype),) + (jnp.zeros((n - 1, 6, 6), p.dtype),) * 2
 
 
 def newton_outcome(c: _NewtonState):
-    """(R, p, y, Newton steps, residual norm, status code) of a finished Newton carry."""
-    return c.R, c.p, c.y, jnp.maximum(c.iterations - 1, 0), c.res, c.status
+    """(R, p, y, Newton steps, residual norm, status code, tangent blocks at (R, p)) of a
+    finished Newton carry."""
+    return (c.R, c.p, c.y, jnp.maximum(c.iterations - 1, 0), c.res, c.status,
+            c.tangent)
 
 
 def _mechanism_step(model: Model, ref, R, p, y, r, blocks):
@@ -361,7 +377,8 @@ def _newton(model: Model, settings: StaticSettings, R, p, y, lam, ref, previous=
     rejected trial halves the step from the base. Every loop pass either accepts (counted
     against ``max_iterations``) or backtracks (at most ``line_search_steps`` in a row), so
     the loop always ends (:func:`newton_pass`). Returns (R, p, y, Newton steps, residual
-    norm, status code). ``previous``: as in :func:`newton_pass`.
+    norm, status code, tangent blocks at (R, p)). ``previous``: as in
+    :func:`newton_pass`.
     """
     c = jax.lax.while_loop(lambda c: c.status == _RUNNING,
                            lambda c: newton_pass(model, settings, lam, ref, c, previous),
@@ -382,7 +399,8 @@ class _ContinuationState(NamedTuple):
     the ones before (R_prev, p_prev at lam_prev) for the secant predictor, the next load
     increment dlam, counters, the residual at the last accepted level, and the status of
     the last failed Newton solve (cause); y, y_prev: the joint multipliers at lam and
-    lam_prev."""
+    lam_prev; tangent: the chains' tangent blocks at (R, p) (zero before a level is
+    accepted)."""
     R: jax.Array
     p: jax.Array
     R_prev: jax.Array
@@ -398,6 +416,7 @@ class _ContinuationState(NamedTuple):
     attempts: jax.Array
     residual: jax.Array
     cause: jax.Array
+    tangent: tuple
 
 
 def trial_level(c: _ContinuationState):
@@ -412,7 +431,7 @@ def trial_level(c: _ContinuationState):
 
 
 def after_newton(model: Model, settings: StaticSettings, c: _ContinuationState, lam_try, R,
-                 p, y, its, res, status) -> _ContinuationState:
+                 p, y, its, res, status, tangent) -> _ContinuationState:
     """The continuation carry after the Newton solve at ``lam_try`` ended with ``status``:
     a converged level is accepted and the increment grows by 1.5 after an easy solve (fewer
     than 5 steps), up to :func:`max_load_step`; a failed one halves the increment."""
@@ -428,7 +447,8 @@ def after_newton(model: Model, settings: StaticSettings, c: _ContinuationState, 
                        0.5 * c.dlam),
         accepted=c.accepted + ok, failures=c.failures + (~ok),
         iterations=c.iterations + its, attempts=c.attempts + 1,
-        residual=keep(res, c.residual), cause=keep(c.cause, status))
+        residual=keep(res, c.residual), cause=keep(c.cause, status),
+        tangent=jax.tree_util.tree_map(keep, tangent, c.tangent))
 
 
 def continuing(settings: StaticSettings, c: _ContinuationState):
@@ -447,7 +467,8 @@ def continuation_start(model: Model, settings: StaticSettings) -> _ContinuationS
         lam=jnp.array(0.0),
         lam_prev=jnp.array(0.0), dlam=jnp.asarray(1.0 / settings.load_steps, jnp.float64),
         accepted=zero, failures=zero, iterations=zero, attempts=zero,
-        residual=jnp.array(jnp.inf), cause=jnp.array(int(Status.NOT_RUN)))
+        residual=jnp.array(jnp.inf), cause=jnp.array(int(Status.NOT_RUN)),
+        tangent=_no_tangent(model.p0))
 
 
 def continuation_result(settings: StaticSettings, c: _ContinuationState) -> Equilibrium:
@@ -458,7 +479,7 @@ def continuation_result(settings: StaticSettings, c: _ContinuationState) -> Equi
                                  Status.STEP_TOO_SMALL))
     return Equilibrium(c.R, c.p, converged, c.iterations, c.residual, c.lam, c.accepted,
                        c.failures, status, c.cause, c.y if c.y.size else None,
-                       previous=(c.R_prev, c.p_prev))
+                       previous=(c.R_prev, c.p_prev), tangent=c.tangent)
 
 
 def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
@@ -467,9 +488,8 @@ def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
 
     def body(c: _ContinuationState) -> _ContinuationState:
         lam_try, Rs, ps, ys = trial_level(c)
-        R, p, y, its, res, status = _newton(model, settings, Rs, ps, ys, lam_try, ref,
-                                            (c.R, c.p))
-        return after_newton(model, settings, c, lam_try, R, p, y, its, res, status)
+        outcome = _newton(model, settings, Rs, ps, ys, lam_try, ref, (c.R, c.p))
+        return after_newton(model, settings, c, lam_try, *outcome)
 
     c = jax.lax.while_loop(lambda c: continuing(settings, c), body,
                            continuation_start(model, settings))
@@ -532,11 +552,14 @@ def _implicit_jvp(tangent, primals, tangents):
     return (R, p, y), (dR, dp, dy * nan_if_failed)
 
 
-def equilibrium(model: Model, settings: StaticSettings, continuation=None) -> Equilibrium:
+def equilibrium(model: Model, settings: StaticSettings, continuation=None,
+                keep_tangent: bool = False) -> Equilibrium:
     """The continuation (default :func:`_continuation`; the batched sweeps pass their
     flattened one) under the full loads, with the implicit derivative attached. With
     displacement-controlled tendons, their tensions are solved first
-    (:func:`~simsoft_jax.tendon_control.solve_tensions`)."""
+    (:func:`~simsoft_jax.tendon_control.solve_tensions`). ``keep_tangent``: return the
+    last Newton pass's tangent blocks as ``Equilibrium.tangent`` (not differentiated;
+    for the stability count), else None."""
     model = full_loads(model)
 
     def solve(m, st):
@@ -544,7 +567,8 @@ def equilibrium(model: Model, settings: StaticSettings, continuation=None) -> Eq
                                              jax.lax.stop_gradient(st))
         # None without tendons (a zero-size output would trouble batched maps)
         tension = m.tendon_tension if m.structure.tendon_names else None
-        eq = eq._replace(previous=eq.previous if m.structure.has_friction else None)
+        eq = eq._replace(previous=eq.previous if m.structure.has_friction else None,
+                         tangent=eq.tangent if keep_tangent else None)
         if eq.multipliers is None:       # no joints
             R, p, _ = _implicit(st.tangent, m, eq.converged, eq.R, eq.p, jnp.zeros(0),
                                 eq.previous)

@@ -95,3 +95,21 @@ def test_cli_warns_for_an_unstable_equilibrium(tmp_path):
                           text=True, env=env)
     assert proc.returncode == 0 and "warning" not in proc.stderr
     assert json.loads(out.read_text())["stability"] is None
+
+
+@pytest.mark.parametrize("factor", [0.5, 2.0])
+def test_kept_tangent_is_the_tangent_at_the_equilibrium(factor):
+    """The last Newton pass's tangent that sj.run counts on equals the tangent assembled
+    anew at the returned equilibrium (same state, same loads), and counts the same."""
+    scene = sj.Scene.from_dict(column(factor * P_CR))
+    model = sj.build_model(scene)
+    settings = sj.statics.settings_from_scene(scene.solver)
+    eq = jax.jit(lambda m: sj.statics.equilibrium(m, sj.statics.as_traced(settings),
+                                                  keep_tangent=True))(model)
+    assert bool(eq.converged)
+    _, fresh = residual_and_tangent(full_loads(model), eq.R, eq.p, 1.0)
+    for kept, new in zip(eq.tangent, fresh):
+        scale = np.max(np.abs(np.asarray(new)))
+        np.testing.assert_allclose(np.asarray(kept), np.asarray(new), rtol=0, atol=1e-12 * scale)
+    assert int(stability.negative_eigenvalues(model, eq, eq.tangent)) == \
+        dense_count(model, eq) == int(stability.negative_eigenvalues(model, eq))

@@ -25,6 +25,7 @@ import numpy as np
 from .._xla import jit
 from ..compile_cache import compile_stored
 from ..model import Model, check_built_terms
+from ..packing import pack, unpack
 from ..statics import as_traced
 from ..status import Status
 from .residual import element_inertia
@@ -96,8 +97,7 @@ def _chunk(model: Model, settings: DynamicSettings, carry, h, fresh):
                 _block_outputs(carry, h.shape[0], settings.save_every))
     # padding (h = 0) only follows the run's blocks: run the leading nonzero ones
     carry, out = jax.lax.fori_loop(0, jnp.count_nonzero(h), block, (carry, out))
-    return carry, jnp.concatenate([jnp.ravel(x).astype(jnp.float64)
-                                   for x in _host_fields(out, carry)])
+    return carry, pack(_host_fields(out, carry))
 
 
 def _block_outputs(carry, blocks: int, save_every: int) -> list:
@@ -121,11 +121,7 @@ def _unpack(packed: np.ndarray, layout) -> tuple:
     """Inverse of :func:`_chunk`'s packing: ``(out (7 arrays), state, (failed, status,
     cause, failed_at, residual))`` as NumPy arrays of the shapes and types in
     ``layout`` (:func:`_layout`)."""
-    fields, start = [], 0
-    for shape, dtype in layout:
-        size = int(np.prod(shape, dtype=int))
-        fields.append(packed[start:start + size].reshape(shape).astype(dtype))
-        start += size
+    fields = unpack(packed, [jax.ShapeDtypeStruct(shape, dtype) for shape, dtype in layout])
     return tuple(fields[:7]), State(*fields[7:13]), tuple(fields[13:])
 
 
