@@ -14,6 +14,7 @@ float64 (enabled when ``simsoft_jax`` is imported).
 """
 from __future__ import annotations
 
+import functools
 from fractions import Fraction
 
 import jax
@@ -71,6 +72,7 @@ def _closed_forms(group, phi):
     return jnp.stack([(1.0 - gamma) / x, (1.0 / beta + gamma - 2.0) / (x * x)])
 
 
+@functools.partial(jax.jit, static_argnums=0)
 def _coefficients_of(group, x):
     """Coefficients of ``group`` as functions of ``x = phi^2``, safe at 0 (spec S24), (k,)."""
     small = x < _SERIES_SWITCH
