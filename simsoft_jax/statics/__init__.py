@@ -1,0 +1,260 @@
+"""Static equilibrium on SE(3)^N: Newton with load continuation and line search, and
+gradients of the equilibrium by the implicit function theorem (spec algorithm.md section 5).
+
+``solve_static(model)`` is pure and jit-compiled once per model structure: the whole
+continuation (adaptive load steps, Newton iterations, backtracking) runs inside
+``lax.while_loop``. Its output is differentiable with respect to every array of the Model
+(stiffness, loads, gravity, reference geometry) in forward and reverse mode: the Newton
+iterations are not unrolled; the tangent of the converged solution is
+``dxi = -K_t^-1 (dr/dparams . dparams)`` (spec section 5, last item), solved with the same
+block-tridiagonal tangent through ``lax.custom_linear_solve`` (its transpose for reverse mode).
+
+The package: :mod:`.settings` (:class:`StaticSettings`, :class:`Equilibrium`),
+:mod:`.newton` (one Newton solve at a load level), and here the load continuation, the
+implicit derivative and :func:`solve_static`.
+"""
+from __future__ import annotations
+
+from functools import partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from .. import lie, mechanisms, rod_pairs, tendon_control
+from .._xla import jit
+from ..assembly import residual, residual_and_tangent
+from ..linalg import implicit_solve, implicit_solve_coupled
+from ..loads import full_loads
+from ..model import Model
+from ..status import Status, raise_if_failed
+# the package's names, re-exported (batched sweeps, the dynamics, results import them here)
+from .newton import (_RUNNING, _NewtonState, _newton, _no_tangent, _update,  # noqa: F401
+                     level_tolerance, load_scale, max_load_step, newton_outcome, newton_pass,
+                     newton_start, step_norm, weighted_norm)
+from .settings import Equilibrium, StaticSettings, as_traced, settings_from_scene  # noqa: F401
+
+
+def _secant(R, p, R_prev, p_prev, ratio):
+    """Lie-group secant predictor ``H exp(ratio log(H_prev^-1 H))`` per node (spec 5)."""
+    def one(Ri, pi, Rq, pq):
+        d = lie.log_se3(lie.relative_pose(Rq, pq, Ri, pi))
+        return lie.compose_exp(Ri, pi, ratio * d)
+    return jax.vmap(one)(R, p, R_prev, p_prev)
+
+
+class _ContinuationState(NamedTuple):
+    """Carry of :func:`_continuation`: the last accepted frames (R, p) at load level lam,
+    the ones before (R_prev, p_prev at lam_prev) for the secant predictor, the next load
+    increment dlam, counters, the residual at the last accepted level, and the status of
+    the last failed Newton solve (cause); y, y_prev: the joint multipliers at lam and
+    lam_prev; tangent: the chains' tangent blocks at (R, p) (zero before a level is
+    accepted)."""
+    R: jax.Array
+    p: jax.Array
+    R_prev: jax.Array
+    p_prev: jax.Array
+    y: jax.Array
+    y_prev: jax.Array
+    lam: jax.Array
+    lam_prev: jax.Array
+    dlam: jax.Array
+    accepted: jax.Array
+    failures: jax.Array
+    iterations: jax.Array
+    attempts: jax.Array
+    residual: jax.Array
+    cause: jax.Array
+    tangent: tuple
+
+
+def trial_level(c: _ContinuationState):
+    """The next load level of the continuation and the secant prediction of its frames and
+    joint multipliers: ``(lam_try, R, p, y)``."""
+    lam_try = c.lam + c.dlam
+    lam_try = jnp.where(lam_try > 1.0 - 1e-9, 1.0, lam_try)  # no sliver step from round-off
+    ratio = (lam_try - c.lam) / jnp.maximum(c.lam - c.lam_prev, 1e-300)
+    ratio = jnp.where(c.accepted >= 1, ratio, 0.0)
+    Rs, ps = _secant(c.R, c.p, c.R_prev, c.p_prev, ratio)
+    return lam_try, Rs, ps, c.y + ratio * (c.y - c.y_prev)
+
+
+def after_newton(model: Model, settings: StaticSettings, c: _ContinuationState, lam_try, R,
+                 p, y, its, res, status, tangent) -> _ContinuationState:
+    """The continuation carry after the Newton solve at ``lam_try`` ended with ``status``:
+    a converged level is accepted and the increment grows by 1.5 after an easy solve (fewer
+    than 5 steps), up to :func:`max_load_step`; a failed one halves the increment."""
+    ok = status == Status.CONVERGED
+    grow = jnp.where(its < 5, 1.5, 1.0)
+    keep = lambda new, old: jnp.where(ok, new, old)  # noqa: E731
+    return _ContinuationState(
+        R=keep(R, c.R), p=keep(p, c.p), R_prev=keep(c.R, c.R_prev),
+        p_prev=keep(c.p, c.p_prev), y=keep(y, c.y), y_prev=keep(c.y, c.y_prev),
+        lam_prev=keep(c.lam, c.lam_prev),
+        lam=keep(lam_try, c.lam),
+        dlam=jnp.where(ok, jnp.minimum(c.dlam * grow, max_load_step(model, settings)),
+                       0.5 * c.dlam),
+        accepted=c.accepted + ok, failures=c.failures + (~ok),
+        iterations=c.iterations + its, attempts=c.attempts + 1,
+        residual=keep(res, c.residual), cause=keep(c.cause, status),
+        tangent=jax.tree_util.tree_map(keep, tangent, c.tangent))
+
+
+def continuing(settings: StaticSettings, c: _ContinuationState):
+    """Whether the continuation goes on: loads not reached, increment above its minimum
+    (``min_step_fraction / load_steps``), attempts left."""
+    dlam_min = (1.0 / settings.load_steps) * settings.min_step_fraction
+    return (c.lam < 1.0) & (c.dlam >= dlam_min) & (c.attempts < settings.max_attempts)
+
+
+def continuation_start(model: Model, settings: StaticSettings) -> _ContinuationState:
+    """The continuation carry at load level 0 (the start frames of ``model``)."""
+    zero = jnp.array(0)
+    y = jnp.zeros(mechanisms.multiplier_count(model.structure), model.p0.dtype)
+    return _ContinuationState(
+        R=model.R0, p=model.p0, R_prev=model.R0, p_prev=model.p0, y=y, y_prev=y,
+        lam=jnp.array(0.0),
+        lam_prev=jnp.array(0.0), dlam=jnp.asarray(1.0 / settings.load_steps, jnp.float64),
+        accepted=zero, failures=zero, iterations=zero, attempts=zero,
+        residual=jnp.array(jnp.inf), cause=jnp.array(int(Status.NOT_RUN)),
+        tangent=_no_tangent(model.p0))
+
+
+def continuation_result(settings: StaticSettings, c: _ContinuationState) -> Equilibrium:
+    """The :class:`Equilibrium` of a finished continuation carry."""
+    converged = c.lam >= 1.0
+    status = jnp.where(converged, Status.CONVERGED,
+                       jnp.where(c.attempts >= settings.max_attempts, Status.MAX_ATTEMPTS,
+                                 Status.STEP_TOO_SMALL))
+    return Equilibrium(c.R, c.p, converged, c.iterations, c.residual, c.lam, c.accepted,
+                       c.failures, status, c.cause, c.y if c.y.size else None,
+                       previous=(c.R_prev, c.p_prev), tangent=c.tangent)
+
+
+def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
+    """Adaptive load continuation lam: 0 -> 1 with Newton at each level (spec section 5)."""
+    ref = load_scale(model)
+
+    def body(c: _ContinuationState) -> _ContinuationState:
+        lam_try, Rs, ps, ys = trial_level(c)
+        outcome = _newton(model, settings, Rs, ps, ys, lam_try, ref, (c.R, c.p))
+        return after_newton(model, settings, c, lam_try, *outcome)
+
+    c = jax.lax.while_loop(lambda c: continuing(settings, c), body,
+                           continuation_start(model, settings))
+    return continuation_result(settings, c)
+
+
+@partial(jax.custom_jvp, nondiff_argnums=(0,))
+def _implicit(tangent: str, model: Model, converged, R, p, y, previous):
+    """Identity on a converged equilibrium (frames R, p and joint multipliers y); its
+    derivative is the IFT one (see module doc). Held dofs follow the start frames
+    ``model.R0, model.p0`` (a clamp holds its node there). Where the solve did not
+    converge the derivative is NaN: there is no equilibrium to differentiate, and a
+    finite number would be wrong. With quasi-static friction (``previous``: the frames of
+    the level before the last, else None) the derivative is that of the last level's
+    equilibrium with ``previous`` held fixed: the history of the earlier levels is not
+    differentiated (exact for stations sliding in a direction the parameters do not turn,
+    as the friction (F1) is then ``mu f_n`` whatever the slip's size; an approximation
+    for sticking stations)."""
+    return R, p, y
+
+
+@_implicit.defjvp
+def _implicit_jvp(tangent, primals, tangents):
+    model, converged, R, p, y, previous = primals
+    dmodel = tangents[0]
+    held = 1.0 - model.structure.free_mask()
+    # body-frame motion of the held dofs: translations R^T dp0, rotations vee(R^T dR0)
+    dA = jnp.einsum("nji,njk->nik", R, dmodel.R0)
+    moved = held * jnp.concatenate([jnp.einsum("nji,nj->ni", R, dmodel.p0),
+                                    0.5 * jnp.stack([dA[:, 2, 1] - dA[:, 1, 2],
+                                                     dA[:, 0, 2] - dA[:, 2, 0],
+                                                     dA[:, 1, 0] - dA[:, 0, 1]], axis=1)], axis=1)
+
+    def perturbed(m, x):
+        Rx, px = _update(R, p, x)
+        r = residual(m, Rx, px, 1.0, previous)
+        if m.structure.self_contact:
+            r = r + rod_pairs.residual(m, Rx, px)
+        return mechanisms.residual(m, Rx, px, y, r) if m.structure.joints else (r, y)
+
+    _, (dr, dr_z) = jax.jvp(perturbed, (model, jnp.zeros_like(moved)), (dmodel, moved))
+    r, blocks = residual_and_tangent(model, R, p, 1.0, tangent, previous)
+    identity = model.structure.identity_nodes()
+    if model.structure.joints:
+        system = mechanisms.couple(model, R, p, y, r, blocks)
+        x, z = implicit_solve_coupled(system.blocks, system.B, system.C, system.D, -dr,
+                                      -dr_z, identity)
+        x, dy = mechanisms.split(model.structure, x, z)
+    elif model.structure.self_contact:
+        r, blocks, cpl = rod_pairs.system(model, R, p, r, blocks)
+        x, _ = implicit_solve_coupled(blocks, *cpl, -dr, jnp.zeros(cpl.D.shape[0]), identity)
+        dy = jnp.zeros_like(y)
+    else:
+        x, dy = implicit_solve(blocks, -dr, identity), jnp.zeros_like(y)
+    nan_if_failed = jnp.where(converged, 1.0, jnp.nan)
+    dxi = jnp.where(held > 0, moved, x) * nan_if_failed
+    # d/dt [R exp(t dxi)] at t = 0: (R skew(dxi_w), R dxi_u)
+    dR = jnp.einsum("nij,njk->nik", R, jax.vmap(lie.skew)(dxi[:, 3:]))
+    dp = jnp.einsum("nij,nj->ni", R, dxi[:, :3])
+    return (R, p, y), (dR, dp, dy * nan_if_failed)
+
+
+def equilibrium(model: Model, settings: StaticSettings, continuation=None,
+                keep_tangent: bool = False) -> Equilibrium:
+    """The continuation (default :func:`_continuation`; the batched sweeps pass their
+    flattened one) under the full loads, with the implicit derivative attached. With
+    displacement-controlled tendons, their tensions are solved first
+    (:func:`~simsoft_jax.tendon_control.solve_tensions`). ``keep_tangent``: return the
+    last Newton pass's tangent blocks as ``Equilibrium.tangent`` (not differentiated;
+    for the stability count), else None."""
+    model = full_loads(model)
+
+    def solve(m, st):
+        eq = (continuation or _continuation)(jax.lax.stop_gradient(m),
+                                             jax.lax.stop_gradient(st))
+        # None without tendons (a zero-size output would trouble batched maps)
+        tension = m.tendon_tension if m.structure.tendon_names else None
+        eq = eq._replace(previous=eq.previous if m.structure.has_friction else None,
+                         tangent=eq.tangent if keep_tangent else None)
+        if eq.multipliers is None:       # no joints
+            R, p, _ = _implicit(st.tangent, m, eq.converged, eq.R, eq.p, jnp.zeros(0),
+                                eq.previous)
+            return eq._replace(R=R, p=p, tendon_tension=tension)
+        R, p, y = _implicit(st.tangent, m, eq.converged, eq.R, eq.p, eq.multipliers,
+                            eq.previous)
+        return eq._replace(R=R, p=p, multipliers=y, tendon_tension=tension)
+
+    if not any(model.structure.tendon_displaced):
+        return solve(model, settings)
+    model, ok = tendon_control.solve_tensions(
+        solve, model, settings, settings.step_tolerance * model.char_length)
+    eq = solve(model, settings)
+    failed = eq.converged & ~ok
+    return eq._replace(converged=eq.converged & ok,
+                       status=jnp.where(failed, Status.MAX_ITERATIONS, eq.status))
+
+
+@jit
+def _solve_static(model: Model, settings: StaticSettings) -> Equilibrium:
+    return equilibrium(model, settings)
+
+
+def solve_static(model: Model, settings: StaticSettings = StaticSettings(),
+                 throw: bool = False) -> Equilibrium:
+    """Static equilibrium of ``model`` under its full loads (spec S70-S71).
+
+    Returns an :class:`Equilibrium`; when ``converged`` is False, ``status``/``cause``
+    and :meth:`Equilibrium.message` say why, ``load_level`` how far the continuation got,
+    and R, p hold the last converged state. Compiled once per model structure and set of
+    integer settings (float settings are traced). Differentiable in all Model arrays
+    (implicit function theorem); the derivative of a non-converged solve is NaN.
+    ``throw=True`` raises :class:`~simsoft_jax.status.SolveError` instead of returning a
+    failed solve.
+    """
+    eq = _solve_static(model, as_traced(settings))
+    if throw:
+        raise_if_failed("static", eq.converged, eq.status, eq.cause, eq.load_level,
+                        eq.residual_norm)
+    return eq

@@ -1,0 +1,250 @@
+"""One static Newton solve at a load level (:mod:`simsoft_jax.statics`): residual,
+tangent and step per pass with a natural-level divergence guard and backtracking, the
+norms its tests use, and the load scale of the tolerance."""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from .. import lie, mechanisms, rod_pairs
+from ..assembly import residual_and_tangent
+from ..inertia import centre_of_mass, line_density
+from ..linalg import block_solve, factorize_coupled, solve_coupled
+from ..model import Model
+from ..status import Status
+from .settings import StaticSettings
+
+
+def weighted_norm(model, r):
+    """Unit-consistent norm: forces in N, moments divided by ``char_length`` (spec 4.7.9)."""
+    return jnp.sqrt(jnp.sum(r[:, :3] ** 2) + jnp.sum((r[:, 3:] / model.char_length) ** 2))
+
+
+def step_norm(model, dx):
+    """Largest nodal increment: translation / char_length and rotation (rad)."""
+    trans = jnp.linalg.norm(dx[:, :3], axis=1) / model.char_length
+    rot = jnp.linalg.norm(dx[:, 3:], axis=1)
+    return jnp.max(jnp.maximum(trans, rot))
+
+
+def _step_size(model, dx):
+    """Weighted 2-norm of a Newton step: translations / char_length, rotations in rad."""
+    return jnp.sqrt(jnp.sum((dx[:, :3] / model.char_length) ** 2) + jnp.sum(dx[:, 3:] ** 2))
+
+
+def load_scale(model: Model):
+    """Weighted size (N) of the full external loads, the reference of the tolerance."""
+    s = model.structure
+    mask = s.free_mask()
+    nodal = jnp.zeros_like(model.nodal_dead)
+    if s.has_nodal_dead:
+        nodal = nodal + jnp.abs(model.nodal_dead)
+    if s.has_nodal_follower:
+        nodal = nodal + jnp.abs(model.nodal_follower)
+    total = jnp.sum(weighted_norm(model, nodal * mask) ** 2)
+    if s.has_point_dead or s.has_point_follower:
+        point = jnp.abs(model.element_point_dead) + jnp.abs(model.element_point_follower)
+        total = (total + jnp.sum(point[:, :3] ** 2)
+                 + jnp.sum((point[:, 3:] / model.char_length) ** 2))
+    q = jnp.zeros_like(model.distributed_world)
+    if s.has_gravity:
+        rho_a = jax.vmap(line_density)(model.inertia)
+        q = q + rho_a[:, None] * model.gravity
+        if s.inertia_offset:   # the weight's moment about the axis (offset centre of mass)
+            arm = jnp.linalg.norm(jax.vmap(centre_of_mass)(model.inertia), axis=1)
+            total = total + jnp.sum((model.length * rho_a * arm / model.char_length) ** 2
+                                    * jnp.sum(model.gravity ** 2))
+    if s.has_distributed_world:
+        q = q + model.distributed_world
+    if s.has_distributed_local:
+        q = q + jnp.abs(model.distributed_local)
+    total = total + jnp.sum((model.length[:, None] * q) ** 2)
+    if s.offset_load_nodes:        # forces at offset points and their moments
+        f = model.offset_force
+        total = total + jnp.sum(f ** 2) + jnp.sum(
+            (jnp.linalg.norm(model.offset_point, axis=1) * jnp.linalg.norm(f, axis=1)
+             / model.char_length) ** 2)
+    if s.mass_nodes and s.has_gravity:   # weights of attached masses
+        w = model.mass[:, None] * model.gravity
+        total = total + jnp.sum(w ** 2) + jnp.sum(
+            (jnp.linalg.norm(model.mass_offset, axis=1) * jnp.linalg.norm(w, axis=1)
+             / model.char_length) ** 2)
+    if s.tendon_names:   # tendon tensions and the moments they make at their offsets
+        r = jnp.max(jnp.linalg.norm(model.tendon_offset, axis=-1), axis=(1, 2))
+        total = total + jnp.sum(model.tendon_tension ** 2 * (1.0 + (r / model.char_length) ** 2))
+    if s.chamber_names:  # pressure times area, and its moment at the chamber's offset
+        r = jnp.linalg.norm(model.chamber_offset, axis=-1)
+        f = model.chamber_pressure * model.chamber_area
+        total = total + jnp.sum(f ** 2 * (1.0 + (r / model.char_length) ** 2))
+    return jnp.sqrt(total)
+
+
+def _update(R, p, dx):
+    return jax.vmap(lie.compose_exp)(R, p, dx)
+
+
+class _NewtonState(NamedTuple):
+    """Carry of :func:`_newton`: the trial frames (R, p), the accepted base frames and
+    the Newton step from the base (dx), the fraction of it tried (step), the size of that
+    step (size_base) and the residual at the base (res_base), the residual at the last
+    evaluated trial (res), rejected trials in a row (backtracks), accepted Newton steps
+    (iterations), and the status: -1 running, else a :class:`Status` code. y, base_y,
+    dy: the joint multipliers like R, p and dx (empty without joints). tangent: the
+    chains' tangent blocks evaluated at the last pass's trial (at (R, p) once done)."""
+    R: jax.Array
+    p: jax.Array
+    base_R: jax.Array
+    base_p: jax.Array
+    dx: jax.Array
+    y: jax.Array
+    base_y: jax.Array
+    dy: jax.Array
+    step: jax.Array
+    size_base: jax.Array
+    res: jax.Array
+    res_base: jax.Array
+    backtracks: jax.Array
+    iterations: jax.Array
+    status: jax.Array
+    tangent: tuple
+
+
+_RUNNING = -1
+
+
+def level_tolerance(model: Model, settings: StaticSettings):
+    """The tolerance of the intermediate load levels (see :class:`StaticSettings`)."""
+    if model.structure.has_friction:
+        return settings.tolerance
+    return jnp.maximum(settings.level_tolerance, settings.tolerance)
+
+
+def max_load_step(model: Model, settings: StaticSettings):
+    """The largest load increment of the continuation (see :class:`StaticSettings`)."""
+    first = 1.0 / settings.load_steps
+    if settings.max_load_step is None or model.structure.has_friction:
+        return first
+    return jnp.maximum(settings.max_load_step, first)
+
+
+def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: _NewtonState,
+                previous=None) -> _NewtonState:
+    """One pass of :func:`_newton` at load level ``lam`` (load scale ``ref``): residual,
+    tangent and Newton step at the trial state, then accept or backtrack (see there);
+    ``previous``: the frames (R, p) of the last converged level (the reference of the
+    quasi-static friction)."""
+    tol = jnp.where(lam < 1.0, level_tolerance(model, settings), settings.tolerance) * ref
+    identity = model.structure.identity_nodes()
+    r, blocks = residual_and_tangent(model, c.R, c.p, lam, settings.tangent, previous)
+    tangent = blocks   # the chains' tangent, kept before a border replaces ``blocks``
+    if model.structure.joints:    # rods, bodies and joints: the bordered system
+        res, dx, dy = _mechanism_step(model, ref, c.R, c.p, c.y, r, blocks)
+    elif model.structure.self_contact:   # rod-rod contact: the bordered system
+        r, blocks, cpl = rod_pairs.system(model, c.R, c.p, r, blocks)
+        dx, _ = solve_coupled(factorize_coupled(blocks, *cpl, identity), -r,
+                             jnp.zeros(cpl.D.shape[0]))
+        res, dy = weighted_norm(model, r), c.dy
+    else:
+        res, dx, dy = weighted_norm(model, r), -block_solve(blocks, r, identity), c.dy
+    rot = jnp.max(jnp.linalg.norm(dx[:, 3:], axis=1))
+    cap = jnp.minimum(1.0, settings.max_rotation_step / jnp.maximum(rot, 1e-300))
+    dx, dy = dx * cap, dy * cap
+    size = _step_size(model, dx)
+    finite = jnp.isfinite(res) & jnp.isfinite(size)
+    exhausted = c.backtracks >= settings.line_search_steps
+    accept = finite & ((size < settings.max_step_growth * c.size_base) | exhausted)
+    # converged: residual below tolerance, or stagnating at the round-off floor (a stiff
+    # axial term makes |r| ~ eps EA) well below the load scale
+    converged = accept & ((res <= tol) | ((res <= settings.stagnation_level * ref)
+                                          & (res >= 0.5 * c.res_base)))
+    # the next Newton step is below step_tolerance: the state is that accurate, even
+    # where round-off keeps the residual above tol (stiff axial terms, spec (S64))
+    stalled = accept & (step_norm(model, dx) <= settings.step_tolerance)
+    base_R = jnp.where(accept, c.R, c.base_R)
+    base_p = jnp.where(accept, c.p, c.base_p)
+    base_y = jnp.where(accept, c.y, c.base_y)
+    dx = jnp.where(accept, dx, c.dx)
+    dy = jnp.where(accept, dy, c.dy)
+    step = jnp.where(accept, 1.0, 0.5 * c.step)
+    trial_R, trial_p = _update(base_R, base_p, step * dx)
+    trial_y = base_y + step * dy
+    iterations = c.iterations + accept
+    # a non-finite trial from a base with no finite step (the first evaluation, or
+    # after line_search_steps halvings) cannot be backtracked: the solve fails here
+    nonfinite = ~finite & (exhausted | ~jnp.isfinite(c.size_base))
+    status = jnp.where(converged | stalled, Status.CONVERGED, _RUNNING)
+    status = jnp.where(nonfinite, Status.NONFINITE, status)
+    status = jnp.where((status == _RUNNING) & (iterations > settings.max_iterations),
+                       Status.MAX_ITERATIONS, status)
+    status = jnp.where((status == _RUNNING) & ~jnp.all(jnp.isfinite(trial_p)),
+                       Status.NONFINITE, status)
+    done = status != _RUNNING
+    return _NewtonState(
+        R=jnp.where(done, c.R, trial_R), p=jnp.where(done, c.p, trial_p),
+        base_R=base_R, base_p=base_p, dx=dx, y=jnp.where(done, c.y, trial_y),
+        base_y=base_y, dy=dy, step=step,
+        size_base=jnp.where(accept, size, c.size_base), res=res,
+        res_base=jnp.where(accept, res, c.res_base),
+        backtracks=jnp.where(accept, 0, c.backtracks + 1),
+        iterations=iterations, status=status, tangent=tangent)
+
+
+def newton_start(R, p, y) -> _NewtonState:
+    """The Newton carry before the first pass, from the predicted frames (R, p) and joint
+    multipliers y."""
+    inf, zero = jnp.array(jnp.inf), jnp.array(0)
+    return _NewtonState(R=R, p=p, base_R=R, base_p=p, dx=jnp.zeros(p.shape[:1] + (6,)),
+                        y=y, base_y=y, dy=jnp.zeros_like(y),
+                        step=jnp.array(1.0), size_base=inf, res=inf, res_base=inf,
+                        backtracks=zero, iterations=zero, status=jnp.array(_RUNNING),
+                        tangent=_no_tangent(p))
+
+
+def _no_tangent(p):
+    """Zero tangent blocks ``(diag, upper, lower)`` for the N nodes of positions p (N,3)."""
+    n = p.shape[0]
+    return (jnp.zeros((n, 6, 6), p.dtype),) + (jnp.zeros((n - 1, 6, 6), p.dtype),) * 2
+
+
+def newton_outcome(c: _NewtonState):
+    """(R, p, y, Newton steps, residual norm, status code, tangent blocks at (R, p)) of a
+    finished Newton carry."""
+    return (c.R, c.p, c.y, jnp.maximum(c.iterations - 1, 0), c.res, c.status,
+            c.tangent)
+
+
+def _mechanism_step(model: Model, ref, R, p, y, r, blocks):
+    """Residual norm and Newton step ``(dx (N,6), dy (M,))`` of the bordered system of rods,
+    bodies and joints (:mod:`simsoft_jax.mechanisms`). The norm adds the bodies' force
+    residuals and the joints' gaps (/ char_length) and rotations times the load scale
+    ``ref``, so a converged solve holds its joints to ``tolerance`` of the length."""
+    system = mechanisms.couple(model, R, p, y, r, blocks)
+    x, z = solve_coupled(factorize_coupled(system.blocks, system.B, system.C, system.D,
+                                          model.structure.identity_nodes()),
+                         -system.r, -system.r_z)
+    forces, gaps = mechanisms.violation_norm(model, system.r_z)
+    res = jnp.sqrt(weighted_norm(model, system.r) ** 2 + forces ** 2 + (ref * gaps) ** 2)
+    return (res,) + mechanisms.split(model.structure, x, z)
+
+
+def _newton(model: Model, settings: StaticSettings, R, p, y, lam, ref, previous=None):
+    """Newton iterations at load level ``lam`` from (R, p) (spec S71) with damping.
+
+    One loop evaluates residual, tangent and Newton step at a trial state. The trial is
+    accepted unless its Newton step exceeds ``max_step_growth`` times the step that led
+    to it (a natural-level divergence guard in the spirit of Deuflhard's monotonicity
+    test: it measures the distance to the solution in the unknowns, so the huge axial
+    stiffness of a rod cannot make a good step look bad, as a residual-based Armijo test
+    does; a strict theta < 1 test rejects good steps of stiff rods) or is not finite; a
+    rejected trial halves the step from the base. Every loop pass either accepts (counted
+    against ``max_iterations``) or backtracks (at most ``line_search_steps`` in a row), so
+    the loop always ends (:func:`newton_pass`). Returns (R, p, y, Newton steps, residual
+    norm, status code, tangent blocks at (R, p)). ``previous``: as in
+    :func:`newton_pass`.
+    """
+    c = jax.lax.while_loop(lambda c: c.status == _RUNNING,
+                           lambda c: newton_pass(model, settings, lam, ref, c, previous),
+                           newton_start(R, p, y))
+    return newton_outcome(c)
