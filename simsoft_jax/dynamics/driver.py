@@ -121,15 +121,17 @@ def _unpack(packed: np.ndarray, layout) -> tuple:
     """Inverse of :func:`_chunk`'s packing: ``(out (7 arrays), state, (failed, status,
     cause, failed_at, residual))`` as NumPy arrays of the shapes and types in
     ``layout`` (:func:`_layout`)."""
-    fields = unpack(packed, [jax.ShapeDtypeStruct(shape, dtype) for shape, dtype in layout])
+    fields = unpack(packed, layout)
     return tuple(fields[:7]), State(*fields[7:13]), tuple(fields[13:])
 
 
 def _layout(carry, blocks: int, save_every: int) -> list:
-    """Shapes and types of the packed fields of a chunk of ``blocks`` save blocks from a
-    carry of the shapes of ``carry`` (host placeholder), in :func:`_host_fields` order."""
-    return _block_outputs(carry, blocks, save_every) + [
+    """Shapes and types (:class:`jax.ShapeDtypeStruct`) of the packed fields of a chunk of
+    ``blocks`` save blocks from a carry of the shapes of ``carry`` (host placeholder), in
+    :func:`_host_fields` order."""
+    fields = _block_outputs(carry, blocks, save_every) + [
         (np.shape(x), np.asarray(x).dtype) for x in _host_fields((), carry)]
+    return [jax.ShapeDtypeStruct(shape, dtype) for shape, dtype in fields]
 
 
 def _placeholder_carry(model: Model):
