@@ -8,10 +8,7 @@ JAX's persistent compilation cache, :mod:`.compile_cache`) and returns a
 """
 from __future__ import annotations
 
-import collections
-import hashlib
 import json
-import pickle
 import time
 import warnings
 from pathlib import Path
@@ -22,69 +19,21 @@ import numpy as np
 
 from . import compile_cache, contacts
 from ._xla import jit
+from .built_models import Lru, model_of
 from .compile_cache import compile_stored
 from .dynamics import Trajectory, rollout
 from .dynamics.driver import compile_key
 from .mechanisms import multiplier_count
-from .model import Model, build_model
+from .model import Model
 from .output import finite_or_none, write_atomic
-from .packing import pack, unpack
+from .packing import Layout, pack
 from .scene import Scene, load_scene
 from .statics import Equilibrium, as_traced, equilibrium, settings_from_scene
 from .stability import negative_eigenvalues
 from .status import Status
 
 
-class _CompiledCache(collections.OrderedDict):
-    """Compiled solver programs by structure (or built models by scene), least recently
-    used dropped beyond ``size`` (each holds compiled code or arrays; a session sweeping
-    many structures must not grow without bound)."""
-
-    def __init__(self, size: int = 16):
-        super().__init__()
-        self.size = size
-
-    def __getitem__(self, key):
-        value = super().__getitem__(key)
-        self.move_to_end(key)
-        return value
-
-    def __setitem__(self, key, value):
-        super().__setitem__(key, value)
-        self.move_to_end(key)
-        while len(self) > self.size:
-            self.popitem(last=False)
-
-
-_COMPILED = _CompiledCache()
-_MODELS = _CompiledCache(size=8)
-_ON_DEVICE = _CompiledCache(size=8)
-
-
-def _scene_key(scene: Scene) -> bytes | None:
-    """A digest of everything in ``scene`` (its pickled fields: numbers, arrays, names,
-    the source dict), or None when it cannot be pickled."""
-    try:
-        return hashlib.blake2b(pickle.dumps(scene, protocol=5), digest_size=20).digest()
-    except Exception:  # noqa: BLE001 -- an unpicklable scene is simply not cached
-        return None
-
-
-def model_of(scene: Scene) -> Model:
-    """``build_model(scene, device=False)``, built once per scene content: a later call
-    with a scene equal in every field (the same object, a reload of the same file, or an
-    equal dict) returns the same Model, whose arrays are read-only; any changed number,
-    name or flag builds a new one. The digest costs ~0.1 ms against ~1-4 ms of building."""
-    key = _scene_key(scene)
-    if key is not None and key in _MODELS:
-        return _MODELS[key]
-    model = build_model(scene, device=False)
-    for leaf in jax.tree_util.tree_leaves(model):
-        if isinstance(leaf, np.ndarray):
-            leaf.setflags(write=False)
-    if key is not None:
-        _MODELS[key] = model
-    return model
+_COMPILED = Lru()
 
 
 @jit
@@ -130,20 +79,42 @@ def static_layout(structure) -> tuple:
     return eq, count
 
 
-def _program_model(model: Model) -> Model:
-    """The copy of ``model`` (from :func:`model_of`) to hand a compiled static program:
-    its host arrays at the first run (the program transfers them, ~0.15 ms, against ~1 ms
-    for a separate transfer of its ~60 arrays), a device copy kept from the second run of
-    the same model on (no transfer at later calls: ~0.1 ms of a 3.5 ms Princeton solve)."""
-    key = id(model)
-    if key not in _ON_DEVICE:
-        _ON_DEVICE[key] = (model, None)   # the model held: its id stays its own
-        return model
-    _, device = _ON_DEVICE[key]
-    if device is None:
-        device = jax.device_put(model)
-        _ON_DEVICE[key] = (model, device)
-    return device
+class _StaticRuns:
+    """What the static runs of one built model keep (:func:`_static_runs`): the model
+    (held: its id stays its own), the arrays to hand the compiled program (its host arrays
+    at the first run: the program transfers them, ~0.15 ms, against ~1 ms for a separate
+    transfer of its ~60 arrays; a device copy from the second run on: no transfer at later
+    calls, ~0.1 ms of a 3.5 ms Princeton solve) and, per settings, the compiled solver and
+    the traced settings (looking the program up by structure costs ~0.05 ms)."""
+
+    def __init__(self, model: Model):
+        self.model, self.device, self.solvers = model, None, {}
+
+    def arrays(self) -> Model:
+        if self.device is None:
+            self.device = False          # the next run gets a device copy
+            return self.model
+        if self.device is False:
+            self.device = jax.device_put(self.model)
+        return self.device
+
+    def solver(self, settings) -> tuple:
+        """``(compiled solver, traced settings, seconds spent compiling it now)``."""
+        if settings in self.solvers:
+            return self.solvers[settings] + (0.0,)
+        solver, seconds = compiled_static_solver(self.model, settings)
+        self.solvers[settings] = (solver, as_traced(settings))
+        return self.solvers[settings] + (seconds,)
+
+
+_STATIC_RUNS = Lru(size=8)   # id(model) -> _StaticRuns
+
+
+def _static_runs(model: Model) -> _StaticRuns:
+    runs = _STATIC_RUNS.get(id(model))
+    if runs is None or runs.model is not model:
+        runs = _STATIC_RUNS[id(model)] = _StaticRuns(model)
+    return runs
 
 
 def compiled_static_solver(model: Model, settings):
@@ -160,11 +131,11 @@ def compiled_static_solver(model: Model, settings):
     program = compile_stored(_solve_static_checked,
                              (model, as_traced(settings), np.bool_(True)),
                              jax.tree_util.tree_structure((0, 0, 0)), "static")
-    layout = static_layout(model.structure)
+    layout = Layout(static_layout(model.structure))
 
     def compiled(*args):
         R, p, packed = jax.device_get(program(*args))
-        eq, count = unpack(packed, layout)
+        eq, count = layout.unpack(packed)
         return eq._replace(R=R, p=p), count
     # a program's first execution in a process costs more than later ones (one-off
     # set-up of its kernels): paid here, by a solve to an infinite tolerance (one Newton
@@ -186,7 +157,8 @@ class Result:
     time ((T,) s, dynamic only), wall_time_s (after compilation; static: with the
     stability check), compile_time_s (compiling or loading the program and one
     throw-away execution of it, 0 when it was ready), model (read-only NumPy arrays: ``build_model(scene,
-    device=False)``, shared by the runs of equal scenes: :func:`model_of`),
+    device=False)``, shared by the runs of equal scenes:
+    :func:`~simsoft_jax.built_models.model_of`),
     raw (the :class:`~simsoft_jax.statics.Equilibrium` or
     :class:`~simsoft_jax.dynamics.Trajectory`), stability (static only, None when not
     checked (not converged, or ``run(..., stability=False)``):
@@ -389,7 +361,7 @@ def run(scene, progress=None, stability: bool = True) -> Result:
     per model structure: in this process, and on disk in JAX's persistent compilation
     cache for later processes (:mod:`simsoft_jax.compile_cache`; off with
     ``SIMSOFT_JAX_CACHE=0``). The Model of a scene is built once per scene content
-    (:func:`model_of`). ``stability``: count the
+    (:func:`~simsoft_jax.built_models.model_of`). ``stability``: count the
     negative eigenvalues of the tangent at a converged static equilibrium
     (:attr:`Result.stability`; :mod:`simsoft_jax.stability`).
     """
@@ -401,10 +373,10 @@ def run(scene, progress=None, stability: bool = True) -> Result:
     model = model_of(scene)  # host arrays (the program transfers them), cached by content
     if scene.solver.kind == "dynamic":
         return _run_dynamic(scene, model, progress)
-    settings = settings_from_scene(scene.solver)
-    solver, compile_time = compiled_static_solver(model, settings)
+    runs = _static_runs(model)
+    solver, settings, compile_time = runs.solver(settings_from_scene(scene.solver))
     start = time.perf_counter()
-    eq, count = solver(_program_model(model), as_traced(settings), np.bool_(stability))
+    eq, count = solver(runs.arrays(), settings, np.bool_(stability))
     wall = time.perf_counter() - start
     checked = None if count < 0 else {"negative_eigenvalues": int(count),
                                       "stable": int(count) == 0}

@@ -99,8 +99,14 @@ def _release_compiled_programs(request):
     compiler. Until then the programs stay in memory, so later modules that use the same
     structures (and the many small programs of model building) neither compile them again
     nor read them back from the persistent cache. A module that counts compilations sets
-    ``COUNTS_COMPILATIONS = True`` and starts with none in memory."""
+    ``COUNTS_COMPILATIONS = True`` and starts with none in memory (neither JAX's nor the
+    programs and built models that ``sj.run`` keeps)."""
     if getattr(request.module, "COUNTS_COMPILATIONS", False):
+        from simsoft_jax import built_models, results
+
+        for kept in (results._COMPILED, results._STATIC_RUNS, built_models._MODELS,
+                     built_models._SEEN):
+            kept.clear()
         _release()
     yield
     maps = _memory_maps()

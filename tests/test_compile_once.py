@@ -150,7 +150,10 @@ def test_run_static_and_solve_static_compile_once():
     ``sj.solve_static`` once; other loads, stiffness and tolerances compile nothing."""
     with compilations() as first:
         r1 = sj.run(cantilever(1.0, 2.0))
-    assert first["jit(_solve_static_checked)"] == 1 and "jit(negative_eigenvalues)" not in first
+    # compiled, or loaded from the tests' program folder when an earlier module ran this
+    # structure (stored under the program's kind)
+    assert first["jit(_solve_static_checked)"] + first["jit(static)"] == 1, first
+    assert "jit(negative_eigenvalues)" not in first
     with compilations() as again:
         r2 = sj.run(cantilever(0.5, 0.5))
     assert sum(again.values()) == 0, again

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import results
-from simsoft_jax.packing import pack, unpack
+from simsoft_jax import built_models, results
+from simsoft_jax.packing import Layout, pack
 from simsoft_jax.statics import as_traced, settings_from_scene
 
 
@@ -13,7 +13,7 @@ def test_round_trip_keeps_values_shapes_types_and_absent_fields():
     tree = {"R": np.arange(18.0).reshape(2, 3, 3) / 7.0, "ok": np.bool_(True),
             "its": np.int64(2**52 + 1), "none": None, "v": np.array([-1.5e300, 3e-310])}
     like = jax.tree_util.tree_map(lambda x: jax.ShapeDtypeStruct(np.shape(x), x.dtype), tree)
-    back = unpack(np.asarray(jax.jit(pack)(tree)), like)
+    back = Layout(like).unpack(np.asarray(jax.jit(pack)(tree)))
     assert back["none"] is None
     for key in ("R", "ok", "its", "v"):
         assert back[key].dtype == tree[key].dtype and back[key].shape == np.shape(tree[key])
@@ -23,7 +23,7 @@ def test_round_trip_keeps_values_shapes_types_and_absent_fields():
 def test_layout_of_another_size_is_refused():
     like = (jax.ShapeDtypeStruct((2, 3), np.float64),)
     with pytest.raises(ValueError, match="packed vector of 5 numbers, layout of 6"):
-        unpack(np.zeros(5), like)
+        Layout(like).unpack(np.zeros(5))
 
 
 STIFF = {"EA": 1e4, "GAy": 1e4, "GAz": 1e4, "GJ": 1.0, "EIy": 1.0, "EIz": 1.0}
@@ -58,7 +58,7 @@ def test_static_layout_is_the_traced_output(scene):
     types JAX traces for those fields (plain rod, tendons, joints, friction), and adds up to the
     traced size of the packed vector."""
     scene = sj.Scene.from_dict(scene)
-    model = results.model_of(scene)
+    model = built_models.model_of(scene)
     settings = as_traced(settings_from_scene(scene.solver))
     R, p, packed = jax.eval_shape(results._solve_static_checked, model, settings,
                                   np.bool_(True))

@@ -25,7 +25,7 @@ import numpy as np
 from .._xla import jit
 from ..compile_cache import compile_stored
 from ..model import Model, check_built_terms
-from ..packing import pack, unpack
+from ..packing import Layout, pack
 from ..statics import as_traced
 from ..status import Status
 from .residual import element_inertia
@@ -121,17 +121,17 @@ def _unpack(packed: np.ndarray, layout) -> tuple:
     """Inverse of :func:`_chunk`'s packing: ``(out (7 arrays), state, (failed, status,
     cause, failed_at, residual))`` as NumPy arrays of the shapes and types in
     ``layout`` (:func:`_layout`)."""
-    fields = unpack(packed, layout)
+    fields = layout.unpack(packed)
     return tuple(fields[:7]), State(*fields[7:13]), tuple(fields[13:])
 
 
-def _layout(carry, blocks: int, save_every: int) -> list:
-    """Shapes and types (:class:`jax.ShapeDtypeStruct`) of the packed fields of a chunk of
+def _layout(carry, blocks: int, save_every: int) -> Layout:
+    """The :class:`~simsoft_jax.packing.Layout` of the packed fields of a chunk of
     ``blocks`` save blocks from a carry of the shapes of ``carry`` (host placeholder), in
     :func:`_host_fields` order."""
     fields = _block_outputs(carry, blocks, save_every) + [
         (np.shape(x), np.asarray(x).dtype) for x in _host_fields((), carry)]
-    return [jax.ShapeDtypeStruct(shape, dtype) for shape, dtype in fields]
+    return Layout([jax.ShapeDtypeStruct(shape, dtype) for shape, dtype in fields])
 
 
 def _placeholder_carry(model: Model):

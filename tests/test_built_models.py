@@ -1,0 +1,95 @@
+"""simsoft_jax.built_models: the Model of a scene kept by content, an immutable Scene
+object recognised by identity, and every way such a scene can still change noticed."""
+import numpy as np
+
+import simsoft_jax as sj
+from conftest import arc
+from simsoft_jax import built_models
+
+
+def cantilever(moment, EI=2.0):
+    """Clamped rod along x under a tip moment about y: exact pure bending (kappa = M/EI)."""
+    return {"name": "bend", "solver": {"kind": "static", "load_steps": 2},
+            "rods": [{"name": "rod", "elements": 4,
+                      "geometry": {"kind": "straight", "length": 1.0},
+                      "stiffness": {"EA": 1e5, "GAy": 1e5, "GAz": 1e5, "GJ": EI, "EIy": EI,
+                                    "EIz": EI},
+                      "inertia": {"rhoA": 1.0, "rhoJ": 1.0, "rhoIy": 1.0, "rhoIz": 1.0}}],
+            "constraints": [{"kind": "clamp", "rod": "rod", "node": 0}],
+            "loads": [{"kind": "moment", "rod": "rod", "node": -1, "frame": "local",
+                       "vector": [0.0, moment, 0.0]}]}
+
+
+S = np.linspace(0.0, 1.0, 5)
+
+
+def no_pickling(monkeypatch):
+    def refuse(*args, **kwargs):
+        raise AssertionError("the scene was pickled again")
+    monkeypatch.setattr(built_models.pickle, "dumps", refuse)
+
+
+def test_the_same_immutable_scene_is_found_without_a_digest(monkeypatch):
+    scene = sj.Scene.from_dict(cantilever(1.0))
+    model = built_models.model_of(scene)
+    no_pickling(monkeypatch)
+    assert built_models.model_of(scene) is model
+    monkeypatch.undo()
+    # an equal scene parsed again is another object: found by its digest
+    assert built_models.model_of(sj.Scene.from_dict(cantilever(1.0))) is model
+
+
+def test_an_array_made_writable_and_changed_builds_a_new_model():
+    """Unlocking a read-only array of a remembered scene and changing it in place is
+    noticed: the new model bends by the new moment (exact pure bending)."""
+    scene = sj.Scene.from_dict(cantilever(1.0))
+    first = sj.run(scene)
+    np.testing.assert_allclose(first.positions("rod"), arc(0.5, S)[0], rtol=0, atol=1e-9)
+    vector = scene.loads[0].vector
+    assert not vector.flags.writeable
+    vector.setflags(write=True)
+    vector[1] = 2.0
+    second = sj.run(scene)
+    assert second.model is not first.model
+    np.testing.assert_allclose(second.positions("rod"), arc(1.0, S)[0], rtol=0, atol=1e-9)
+
+
+def test_a_scene_with_a_writable_array_is_digested_at_every_call():
+    """A scene given a writable array (``Scene.replace``) is never trusted by identity: an
+    in-place change of its gravity reaches the model."""
+    scene = sj.Scene.from_dict(cantilever(1.0)).replace(gravity=np.array([0.0, 0.0, -9.81]))
+    model = built_models.model_of(scene)
+    assert built_models.model_of(scene) is model
+    scene.gravity[2] = -1.62
+    moon = built_models.model_of(scene)
+    assert moon is not model
+    np.testing.assert_array_equal(np.asarray(moon.gravity), [0.0, 0.0, -1.62])
+
+
+def test_a_changed_section_dict_is_noticed():
+    """The flat dicts of a scene (section dimensions) are compared with their copy at each
+    call by identity: a change gives another digest and another model."""
+    d = cantilever(1.0)
+    rod = d["rods"][0]
+    del rod["stiffness"], rod["inertia"]
+    rod.update(section={"shape": "circle", "diameter": 0.01}, material="spring_steel")
+    scene = sj.Scene.from_dict(d)
+    model = built_models.model_of(scene)
+    assert built_models.model_of(scene) is model
+    scene.rods[0].section.dimensions["diameter"] = 0.02
+    assert built_models.model_of(scene) is not model
+
+
+def test_fields_no_model_is_built_from_share_the_model():
+    """``raw`` (the input as given) and ``source`` do not enter the digest."""
+    scene = sj.Scene.from_dict(cantilever(1.0))
+    model = built_models.model_of(scene)
+    assert built_models.model_of(scene.replace(source="elsewhere.toml", raw={})) is model
+
+
+def test_lru_drops_the_least_recently_used():
+    cache = built_models.Lru(size=2)
+    cache["a"], cache["b"] = 1, 2
+    assert cache["a"] == 1          # read: "b" is now the least recently used
+    cache["c"] = 3
+    assert list(cache) == ["a", "c"]
