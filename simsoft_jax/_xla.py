@@ -9,8 +9,13 @@ products) run single-threaded: the products here are 6x6 to 66x66, too small to 
 from threads, and a sweep over several host devices then keeps one thread per core
 (1000 Princeton cases on two devices 1.16 -> 1.04 s, one device 1.81 -> 1.69 s; the
 helical rollout unchanged; benchmarks/README.md, "Fewer load levels for the Princeton
-cases"). Both are CPU debug options (ignored by other backends); when the installed
-jaxlib does not know them, plain ``jax.jit`` is used.
+cases"). XLA's loop-invariant code motion is skipped: run 14 times over the nested
+Newton loops it was the costliest HLO pass (0.25 s of the helical rollout's 1.2 s of
+HLO passes) and found nothing that saves run time there (the invariants are computed
+before the loops already): compile of the helical rollout 2.55 -> 2.2 s and of the
+Princeton static solve 1.9 -> 1.7 s, run times within 1 % (benchmarks/README.md, "The
+compile, session 12"). The first two are CPU debug options (ignored by other backends);
+when the installed jaxlib does not know them, plain ``jax.jit`` is used.
 """
 from __future__ import annotations
 
@@ -18,7 +23,8 @@ import functools
 
 import jax
 
-_CANDIDATE = {"xla_cpu_use_fusion_emitters": False, "xla_cpu_multi_thread_eigen": False}
+_CANDIDATE = {"xla_cpu_use_fusion_emitters": False, "xla_cpu_multi_thread_eigen": False,
+              "xla_disable_hlo_passes": "while-loop-invariant-code-motion"}
 _OPTIONS: dict | None = None
 
 
