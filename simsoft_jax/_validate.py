@@ -7,6 +7,7 @@ one :class:`ValueError` of the form ``"<path>: <what is wrong>"``.
 
 from __future__ import annotations
 
+import contextvars
 import dataclasses
 import json
 import math
@@ -23,8 +24,19 @@ __all__ = [
     "number", "positive", "integer", "string", "choice", "vector", "matrix",
     "rotation_vector", "rotation_matrix", "rodrigues", "proper_rotations", "prefixed",
     "readonly", "short_key", "check_depth", "MAX_DEPTH",
-    "SpecBase", "same", "read_table", "toml_document",
+    "SpecBase", "same", "read_table", "toml_document", "FILES_READ", "note_read",
 ]
+
+# The files a scene's parsing reads besides the scene file itself (tables, result files),
+# collected while a caller sets a list here (:func:`simsoft_jax.built_models.scene_of`)
+FILES_READ: contextvars.ContextVar = contextvars.ContextVar("files_read", default=None)
+
+
+def note_read(file: Path) -> None:
+    """Add ``file`` to :data:`FILES_READ` when a caller collects them."""
+    files = FILES_READ.get()
+    if files is not None:
+        files.append(Path(file))
 
 
 def fail(path: str, message: str) -> None:
@@ -334,6 +346,7 @@ def read_table(value: Any, path: str, base_dir: Path) -> tuple[np.ndarray, np.nd
         text = file.read_text()
     except OSError as err:
         fail(path, f"cannot read {str(file)!r}: {err.strerror or err}")
+    note_read(file)
     rows: list[tuple[float, float]] = []
     first = True
     for lineno, line in enumerate(text.splitlines(), start=1):

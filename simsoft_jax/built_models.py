@@ -1,5 +1,6 @@
-"""The built Model of a scene, kept by the scene's content (what :func:`~simsoft_jax.run`
-reads first at every call).
+"""The built Model of a scene, kept by the scene's content, and the parsed Scene of a
+scene file, kept by the file's content (what :func:`~simsoft_jax.run` reads first at
+every call).
 
 :func:`model_of` finds the Model of a scene from a digest of the fields it is built from
 (pickled and hashed: ~25 us, ~0.14 ms right after a solve, when the caches are cold,
@@ -8,6 +9,10 @@ read-only NumPy arrays that own their data, flat dicts of numbers and names, as
 :func:`~simsoft_jax.load_scene` and :meth:`~simsoft_jax.Scene.from_dict` make them) is
 remembered by identity too, so running the same Scene object again skips the digest;
 its arrays are checked to be still read-only and its dicts unchanged at each such call.
+
+:func:`scene_of` parses a scene file once per content: the same immutable Scene object
+while the bytes of the file and of every file its parsing read (tables, result files)
+are unchanged (reading and hashing them: ~20 us against 1-3 ms of parsing and checks).
 """
 from __future__ import annotations
 
@@ -15,14 +20,15 @@ import collections
 import dataclasses
 import hashlib
 import pickle
-from pathlib import PurePath
+from pathlib import Path, PurePath
 from typing import NamedTuple
 
 import jax
 import numpy as np
 
+from ._validate import FILES_READ
 from .model import Model, build_model
-from .scene import Scene
+from .scene import Scene, load_scene
 
 # Scene fields no Model depends on: the input as given (``raw``) and its file name
 _NOT_BUILT_FROM = ("raw", "source")
@@ -129,3 +135,41 @@ def model_of(scene: Scene) -> Model:
     if key is not None:
         _MODELS[key] = model
     return model
+
+
+class _Parsed(NamedTuple):
+    """A scene file parsed before: its Scene and the files read, with their digests."""
+    scene: Scene
+    files: tuple
+
+
+_PARSED = Lru(size=8)   # (resolved path, path as given) -> _Parsed
+
+
+def _digest(file: Path) -> bytes | None:
+    try:
+        return hashlib.blake2b(file.read_bytes(), digest_size=20).digest()
+    except OSError:
+        return None
+
+
+def scene_of(path) -> Scene:
+    """``load_scene(path)``, parsed once per content: the same Scene object while the
+    file and every file its parsing read have the bytes they had then (an immutable
+    scene only: module docstring); any change parses it again. Errors as
+    :func:`~simsoft_jax.load_scene`."""
+    key = (Path(path).resolve(), str(path))
+    parsed = _PARSED.get(key)
+    if parsed is not None and all(_digest(f) == d for f, d in parsed.files):
+        return parsed.scene
+    read = [Path(path)]
+    token = FILES_READ.set(read)
+    try:
+        digests = [_digest(Path(path))]   # before parsing: a later change parses again
+        scene = load_scene(path)
+    finally:
+        FILES_READ.reset(token)
+    digests += [_digest(f) for f in read[1:]]
+    if None not in digests and _immutable(_built_from(scene), [], []):
+        _PARSED[key] = _Parsed(scene, tuple(zip(read, digests)))
+    return scene

@@ -19,7 +19,7 @@ import numpy as np
 
 from . import compile_cache, contacts
 from ._xla import jit
-from .built_models import Lru, model_of
+from .built_models import Lru, model_of, scene_of
 from .compile_cache import compile_stored
 from .dynamics import Trajectory, rollout
 from .dynamics.driver import compile_key
@@ -27,7 +27,7 @@ from .mechanisms import multiplier_count
 from .model import Model
 from .output import finite_or_none, write_atomic
 from .packing import Layout, pack
-from .scene import Scene, load_scene
+from .scene import Scene
 from .statics import Equilibrium, as_traced, equilibrium, settings_from_scene
 from .stability import negative_eigenvalues
 from .status import Status
@@ -361,13 +361,15 @@ def run(scene, progress=None, stability: bool = True) -> Result:
     per model structure: in this process, and on disk in JAX's persistent compilation
     cache for later processes (:mod:`simsoft_jax.compile_cache`; off with
     ``SIMSOFT_JAX_CACHE=0``). The Model of a scene is built once per scene content
-    (:func:`~simsoft_jax.built_models.model_of`). ``stability``: count the
+    (:func:`~simsoft_jax.built_models.model_of`), and a scene file parsed once per content
+    of it and of the files it reads (:func:`~simsoft_jax.built_models.scene_of`).
+    ``stability``: count the
     negative eigenvalues of the tangent at a converged static equilibrium
     (:attr:`Result.stability`; :mod:`simsoft_jax.stability`).
     """
     compile_cache.enable()
     if isinstance(scene, (str, Path)):
-        scene = load_scene(scene)
+        scene = scene_of(scene)
     elif isinstance(scene, dict):
         scene = Scene.from_dict(scene)
     model = model_of(scene)  # host arrays (the program transfers them), cached by content

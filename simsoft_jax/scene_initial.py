@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import (check_keys, fail, index, join, number, polyline, proper_rotations,
-                        readonly, require, string, table)
+from ._validate import (check_keys, fail, index, join, note_read, number, polyline,
+                        proper_rotations, readonly, require, string, table)
 from .geometry import chords
 
 INITIAL_KEYS = ("points", "rotations", "result", "time")
@@ -60,6 +60,7 @@ def _parse_restart(init: dict, path: str, rod: str, nodes: int, base_position: n
     name = string(init["result"], rpath)
     file = Path(name) if Path(name).is_absolute() else base_dir / name
     saved = _read_result(file, rpath)
+    note_read(file)
     init["result"] = str(file.absolute())  # raw / to_dict stay valid from any folder
     if rod not in saved["rods"]:
         fail(rpath, f"{file.name} has no rod named {rod!r} "

@@ -1,6 +1,9 @@
 """simsoft_jax.built_models: the Model of a scene kept by content, an immutable Scene
 object recognised by identity, and every way such a scene can still change noticed."""
+import json
+
 import numpy as np
+import pytest
 
 import simsoft_jax as sj
 from conftest import arc
@@ -93,3 +96,49 @@ def test_lru_drops_the_least_recently_used():
     assert cache["a"] == 1          # read: "b" is now the least recently used
     cache["c"] = 3
     assert list(cache) == ["a", "c"]
+
+
+def write(path, d):
+    path.write_text(json.dumps(d))
+    return path
+
+
+def test_a_scene_file_is_parsed_once_per_content(tmp_path, monkeypatch):
+    """``sj.run(path)`` parses a file again only when its bytes change: a rewrite of the
+    same size (one digit) is noticed and the result follows the new moment (exact pure
+    bending)."""
+    path = write(tmp_path / "bend.json", cantilever(1.0))
+    first = built_models.scene_of(path)
+    assert built_models.scene_of(path) is first
+    calls = []
+    monkeypatch.setattr(built_models, "load_scene",
+                        lambda p: calls.append(p) or sj.load_scene(p))
+    assert sj.run(path).model is built_models.model_of(first) and calls == []
+    write(path, cantilever(2.0))
+    result = sj.run(path)
+    assert len(calls) == 1
+    np.testing.assert_allclose(result.positions("rod"), arc(1.0, S)[0], rtol=0, atol=1e-9)
+
+
+def test_a_changed_table_file_parses_the_scene_again(tmp_path):
+    """A file the scene reads (a load profile table) is part of its content: changing it
+    alone gives a new Scene whose profile holds the new numbers."""
+    d = cantilever(1.0)
+    (tmp_path / "law.csv").write_text("0.0, 0.0\n1.0, 1.0\n")
+    d["loads"][0]["profile"] = {"kind": "table", "file": "law.csv"}
+    path = write(tmp_path / "bend.json", d)
+    first = built_models.scene_of(path)
+    assert built_models.scene_of(path) is first
+    (tmp_path / "law.csv").write_text("0.0, 0.0\n1.0, 3.0\n")
+    again = built_models.scene_of(path)
+    assert again is not first
+    np.testing.assert_array_equal(first.loads[0].profile.scale, [0.0, 1.0])
+    np.testing.assert_array_equal(again.loads[0].profile.scale, [0.0, 3.0])
+
+
+def test_a_bad_file_raises_each_time_and_keeps_nothing(tmp_path):
+    path = tmp_path / "bad.json"
+    path.write_text("{not json")
+    for _ in range(2):
+        with pytest.raises(ValueError, match="not valid JSON"):
+            built_models.scene_of(path)
