@@ -9,13 +9,15 @@ products) run single-threaded: the products here are 6x6 to 66x66, too small to 
 from threads, and a sweep over several host devices then keeps one thread per core
 (1000 Princeton cases on two devices 1.16 -> 1.04 s, one device 1.81 -> 1.69 s; the
 helical rollout unchanged; benchmarks/README.md, "Fewer load levels for the Princeton
-cases"). XLA's loop-invariant code motion is skipped: run 14 times over the nested
-Newton loops it was the costliest HLO pass (0.25 s of the helical rollout's 1.2 s of
-HLO passes) and found nothing that saves run time there (the invariants are computed
-before the loops already): compile of the helical rollout 2.55 -> 2.2 s and of the
-Princeton static solve 1.9 -> 1.7 s, run times within 1 % (benchmarks/README.md, "The
-compile, session 12"). The first two are CPU debug options (ignored by other backends);
-when the installed jaxlib does not know them, plain ``jax.jit`` is used.
+cases"). Both are CPU debug options (ignored by other backends); when the installed
+jaxlib does not know them, plain ``jax.jit`` is used.
+
+``jit(..., loop_invariant_motion=False)`` also skips XLA's loop-invariant code motion,
+for a program that computes its invariants before its loops itself: run 14 times over the
+nested Newton loops of the dynamic rollout it was the costliest HLO pass (0.25 s of
+1.2 s) and hoisted nothing that saves run time there (compile 2.55 -> 2.2 s, run time
+unchanged). Not for every program: a sweep of static solves (``lax.map``) runs 1.35x
+slower without it (benchmarks/README.md, "The compile, session 12").
 """
 from __future__ import annotations
 
@@ -23,8 +25,8 @@ import functools
 
 import jax
 
-_CANDIDATE = {"xla_cpu_use_fusion_emitters": False, "xla_cpu_multi_thread_eigen": False,
-              "xla_disable_hlo_passes": "while-loop-invariant-code-motion"}
+_CANDIDATE = {"xla_cpu_use_fusion_emitters": False, "xla_cpu_multi_thread_eigen": False}
+_NO_LOOP_INVARIANT_MOTION = {"xla_disable_hlo_passes": "while-loop-invariant-code-motion"}
 _OPTIONS: dict | None = None
 
 
@@ -50,14 +52,17 @@ class _Jitted:
     of the same function, and the enclosing computation is compiled with its own options.
     """
 
-    def __init__(self, fun, kwargs):
+    def __init__(self, fun, kwargs, loop_invariant_motion: bool = True):
         self._fun, self._kwargs = fun, kwargs
+        self._motion = loop_invariant_motion
         self._top, self._nested = None, None
         functools.update_wrapper(self, fun)
 
     def _top_level(self):
         if self._top is None:
             options = compiler_options()
+            if options and not self._motion:
+                options = {**options, **_NO_LOOP_INVARIANT_MOTION}
             extra = {"compiler_options": options} if options else {}
             self._top = jax.jit(self._fun, **self._kwargs, **extra)
         return self._top
@@ -73,9 +78,11 @@ class _Jitted:
         return self._top_level().lower(*args, **kwargs)
 
 
-def jit(fun=None, **kwargs):
-    """``jax.jit(fun, **kwargs)`` with :func:`compiler_options`; usable as a decorator with
-    or without arguments (``@jit`` or ``@jit(static_argnames=...)``)."""
+def jit(fun=None, loop_invariant_motion: bool = True, **kwargs):
+    """``jax.jit(fun, **kwargs)`` with :func:`compiler_options` (and without XLA's
+    loop-invariant code motion when ``loop_invariant_motion`` is False: module
+    docstring); usable as a decorator with or without arguments (``@jit`` or
+    ``@jit(static_argnames=...)``)."""
     if fun is None:
-        return lambda f: _Jitted(f, kwargs)
-    return _Jitted(fun, kwargs)
+        return lambda f: _Jitted(f, kwargs, loop_invariant_motion)
+    return _Jitted(fun, kwargs, loop_invariant_motion)

@@ -36,3 +36,14 @@ def test_solve_static_matches_plain_jit():
     # inside a user's jit (JAX takes compile options on the outermost jit only)
     nested = jax.jit(lambda m: sj.solve_static(m).p)(model)
     np.testing.assert_allclose(np.asarray(nested), np.asarray(plain.p), rtol=0, atol=1e-13)
+
+
+def test_a_program_without_loop_invariant_motion_gives_the_same_numbers():
+    """``jit(..., loop_invariant_motion=False)`` (the rollout's chunk program) compiles
+    with this jaxlib and gives the loop's closed form (sum of k sin(x), k < 10)."""
+    def f(x):
+        return jax.lax.fori_loop(0, 10, lambda k, c: c + k * jax.numpy.sin(x), 0.0)
+
+    ours = _xla.jit(f, loop_invariant_motion=False)
+    assert ours.lower(1.3).compile() is not None
+    np.testing.assert_allclose(float(ours(1.3)), 45.0 * np.sin(1.3), rtol=1e-15)
