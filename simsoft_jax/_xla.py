@@ -58,11 +58,17 @@ class _Jitted:
         self._top, self._nested = None, None
         functools.update_wrapper(self, fun)
 
+    def compiler_options(self) -> dict:
+        """The compile options of this program (:func:`compiler_options`, and those of
+        ``loop_invariant_motion=False``); empty when this jaxlib rejects them."""
+        options = compiler_options()
+        if options and not self._motion:
+            options = {**options, **_NO_LOOP_INVARIANT_MOTION}
+        return options
+
     def _top_level(self):
         if self._top is None:
-            options = compiler_options()
-            if options and not self._motion:
-                options = {**options, **_NO_LOOP_INVARIANT_MOTION}
+            options = self.compiler_options()
             extra = {"compiler_options": options} if options else {}
             self._top = jax.jit(self._fun, **self._kwargs, **extra)
         return self._top

@@ -44,7 +44,6 @@ import numpy as np
 from jax.experimental import serialize_executable
 
 from . import _xla
-from ._xla import compiler_options
 from .output import write_atomic
 
 ENV_DIR = "SIMSOFT_JAX_CACHE_DIR"
@@ -217,7 +216,7 @@ def _compile(jitted, tree, leaves, name: str, path: Path):
         return jax.tree_util.tree_leaves(jitted(*jax.tree_util.tree_unflatten(tree, xs)))
 
     program.__name__ = program.__qualname__ = getattr(jitted, "__name__", name)
-    options = compiler_options()
+    options = jitted.compiler_options()
     lowered = jax.jit(program, **({"compiler_options": options} if options else {})
                       ).lower(*leaves)
     calls = set(re.findall(r"custom_call @([\w.]+)", lowered.as_text()))
@@ -236,8 +235,9 @@ def compile_stored(jitted, args: tuple, out_tree, name: str):
     With the cache on, the compiled program (over the flattened arguments) is kept in
     ``<cache>/programs/`` under a hash of its argument structure (pytree, shapes,
     dtypes), this package's source and the machine (:func:`_source_key`); a later
-    process loads it. ``out_tree``: the pytree structure of the outputs. Returns a
-    callable with ``jitted``'s signature.
+    process loads it. ``jitted``: a :func:`simsoft_jax._xla.jit` program (compiled with its
+    own options). ``out_tree``: the pytree structure of the outputs. Returns a callable
+    with ``jitted``'s signature.
     """
     folder = jax.config.jax_compilation_cache_dir
     if not folder:
