@@ -24,7 +24,7 @@
   relative), so no tolerance depends on them. A flag that ``XLA_FLAGS`` sets already is kept; ``SIMSOFT_TEST_XLA_DEFAULTS=1``
   compiles with XLA's defaults.
 * Independent NumPy references used by several test modules (elementary rotations, the
-  skew matrix, the exact pure-bending arc).
+  skew matrix, the exact pure-bending arc) and the pure-bending scene they check.
 
 pytest puts this folder on ``sys.path`` (its default ``prepend`` import mode, no
 ``__init__.py`` here), so test modules import the helpers with ``from conftest import ...``.
@@ -189,3 +189,17 @@ def arc(kappa, s, axis="y"):
     else:
         raise ValueError(axis)
     return p, R
+
+
+def pure_bending_scene(moment, EI, elements=4):
+    """Scene dict: a clamped unit rod along x under a tip moment about local y, bending
+    stiffness EI: exact pure bending with kappa = moment / EI (:func:`arc`)."""
+    return {"name": "bend", "solver": {"kind": "static", "load_steps": 2},
+            "rods": [{"name": "rod", "elements": elements,
+                      "geometry": {"kind": "straight", "length": 1.0},
+                      "stiffness": {"EA": 1e5, "GAy": 1e5, "GAz": 1e5, "GJ": EI, "EIy": EI,
+                                    "EIz": EI},
+                      "inertia": {"rhoA": 1.0, "rhoJ": 1.0, "rhoIy": 1.0, "rhoIz": 1.0}}],
+            "constraints": [{"kind": "clamp", "rod": "rod", "node": 0}],
+            "loads": [{"kind": "moment", "rod": "rod", "node": -1, "frame": "local",
+                       "vector": [0.0, moment, 0.0]}]}

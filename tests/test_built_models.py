@@ -6,21 +6,12 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from conftest import arc
+from conftest import arc, pure_bending_scene
 from simsoft_jax import built_models
 
 
-def cantilever(moment, EI=2.0):
-    """Clamped rod along x under a tip moment about y: exact pure bending (kappa = M/EI)."""
-    return {"name": "bend", "solver": {"kind": "static", "load_steps": 2},
-            "rods": [{"name": "rod", "elements": 4,
-                      "geometry": {"kind": "straight", "length": 1.0},
-                      "stiffness": {"EA": 1e5, "GAy": 1e5, "GAz": 1e5, "GJ": EI, "EIy": EI,
-                                    "EIz": EI},
-                      "inertia": {"rhoA": 1.0, "rhoJ": 1.0, "rhoIy": 1.0, "rhoIz": 1.0}}],
-            "constraints": [{"kind": "clamp", "rod": "rod", "node": 0}],
-            "loads": [{"kind": "moment", "rod": "rod", "node": -1, "frame": "local",
-                       "vector": [0.0, moment, 0.0]}]}
+def cantilever(moment):
+    return pure_bending_scene(moment, EI=2.0)
 
 
 S = np.linspace(0.0, 1.0, 5)

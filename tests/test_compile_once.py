@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from conftest import arc
+from conftest import arc, pure_bending_scene
 from simsoft_jax import cli, compile_cache, sweeps
 from simsoft_jax.statics import settings_from_scene
 
@@ -128,19 +128,6 @@ def test_simulate_compiles_once():
     np.testing.assert_allclose(np.asarray(b.p), np.asarray(a.p), rtol=0, atol=1e-9)
 
 
-def cantilever(moment, EI, elements=4):
-    """Clamped rod along x under a tip moment about y: exact pure bending (kappa = M/EI)."""
-    return {"name": "bend", "solver": {"kind": "static", "load_steps": 2},
-            "rods": [{"name": "rod", "elements": elements,
-                      "geometry": {"kind": "straight", "length": 1.0},
-                      "stiffness": {"EA": 1e5, "GAy": 1e5, "GAz": 1e5, "GJ": EI, "EIy": EI,
-                                    "EIz": EI},
-                      "inertia": {"rhoA": 1.0, "rhoJ": 1.0, "rhoIy": 1.0, "rhoIz": 1.0}}],
-            "constraints": [{"kind": "clamp", "rod": "rod", "node": 0}],
-            "loads": [{"kind": "moment", "rod": "rod", "node": -1, "frame": "local",
-                       "vector": [0.0, moment, 0.0]}]}
-
-
 S = np.linspace(0.0, 1.0, 5)
 
 
@@ -149,18 +136,18 @@ def test_run_static_and_solve_static_compile_once():
     program) once;
     ``sj.solve_static`` once; other loads, stiffness and tolerances compile nothing."""
     with compilations() as first:
-        r1 = sj.run(cantilever(1.0, 2.0))
+        r1 = sj.run(pure_bending_scene(1.0, 2.0))
     # compiled, or loaded from the tests' program folder when an earlier module ran this
     # structure (stored under the program's kind)
     assert first["jit(_solve_static_checked)"] + first["jit(static)"] == 1, first
     assert "jit(negative_eigenvalues)" not in first
     with compilations() as again:
-        r2 = sj.run(cantilever(0.5, 0.5))
+        r2 = sj.run(pure_bending_scene(0.5, 0.5))
     assert sum(again.values()) == 0, again
     for r, kappa in ((r1, 0.5), (r2, 1.0)):
         assert r.converged and r.stability["stable"]
         np.testing.assert_allclose(r.positions("rod"), arc(kappa, S)[0], rtol=0, atol=1e-9)
-    model = sj.build_model(sj.Scene.from_dict(cantilever(1.0, 2.0)))
+    model = sj.build_model(sj.Scene.from_dict(pure_bending_scene(1.0, 2.0)))
     with compilations() as first:
         eq = sj.solve_static(model)
     assert first["jit(_solve_static)"] == 1
@@ -176,12 +163,12 @@ def test_run_builds_an_equal_scene_once_and_notices_a_changed_one():
     """``sj.run`` keeps the built Model of a scene: the same Scene, or an equal dict, reuses
     it (read-only arrays), with the result of a fresh build's solve; a changed moment or
     stiffness builds a new model, whose result follows exact pure bending."""
-    scene = sj.Scene.from_dict(cantilever(1.0, 2.0))
-    a, b, c = sj.run(scene), sj.run(scene), sj.run(cantilever(1.0, 2.0))
+    scene = sj.Scene.from_dict(pure_bending_scene(1.0, 2.0))
+    a, b, c = sj.run(scene), sj.run(scene), sj.run(pure_bending_scene(1.0, 2.0))
     assert b.model is a.model and c.model is a.model and not a.model.p0.flags.writeable
     fresh = sj.solve_static(sj.build_model(scene), settings_from_scene(scene.solver))
     np.testing.assert_allclose(b.positions("rod"), np.asarray(fresh.p), rtol=0, atol=1e-12)
-    for d, kappa in ((cantilever(2.0, 2.0), 1.0), (cantilever(1.0, 4.0), 0.25)):
+    for d, kappa in ((pure_bending_scene(2.0, 2.0), 1.0), (pure_bending_scene(1.0, 4.0), 0.25)):
         r = sj.run(d)
         assert r.model is not a.model
         np.testing.assert_allclose(r.positions("rod"), arc(kappa, S)[0], rtol=0, atol=1e-9)
@@ -195,7 +182,7 @@ def scale_moment(model, q):
 def test_static_sweep_compiles_once():
     """``sweeps.static_sweep`` (its public API): a second sweep of the same size with
     other points compiles nothing."""
-    model = sj.build_model(sj.Scene.from_dict(cantilever(1.0, 2.0)))
+    model = sj.build_model(sj.Scene.from_dict(pure_bending_scene(1.0, 2.0)))
     with compilations() as first:
         eq = sweeps.static_sweep(model, scale_moment, {"m": np.array([0.5, 1.0])})
     assert sum(first.values()) >= 1
