@@ -103,13 +103,13 @@ def scene_key(scene: Scene) -> bytes | None:
             and not any(a.flags.writeable for a in seen.arrays)
             and all(d == copy for d, copy in seen.dicts)):
         return seen.key
+    fields = _built_from(scene)
     try:   # protocol 4: protocol 5 pickles a read-only array apart from a writable one
-        key = hashlib.blake2b(pickle.dumps(_built_from(scene), protocol=4),
-                              digest_size=20).digest()
+        key = hashlib.blake2b(pickle.dumps(fields, protocol=4), digest_size=20).digest()
     except Exception:  # noqa: BLE001 -- an unpicklable scene is simply not kept
         return None
     arrays, dicts = [], []
-    if _immutable(_built_from(scene), arrays, dicts):
+    if _immutable(fields, arrays, dicts):
         _SEEN[id(scene)] = _Seen(scene, key, arrays, dicts)
     return key
 
