@@ -28,7 +28,8 @@ from .model import Model
 from .terms import ElementData, element_state
 from .terms import autodiff as term_tangents
 from .terms import masses as mass_term
-from .terms import contact, offset_gravity, offset_loads, point_in_element, static_friction
+from .terms import (contact, offset_gravity, offset_loads, point_in_element, registry,
+                   static_friction)
 
 TANGENTS = ("closed_form", "autodiff")
 
@@ -181,9 +182,39 @@ def contact_and_tangent(model: Model, R, p, v=None):
     return jax.vmap(one)(*element_poses(model, R, p), ve, element_data(model))
 
 
+def registered_and_tangents(model: Model, lam, R, p, v=None):
+    """Nodal forces (E,12) of the registered terms (:mod:`simsoft_jax.terms.registry`),
+    their left-invariant tangents (E,12,12) by ``jax.jacfwd`` in the 12 right
+    perturbations of the two nodal frames and, in dynamics (``v`` (N,6) the nodal body
+    velocities), their derivatives in the nodal velocities (E,12,12) (else None). None
+    when the model has no registered term."""
+    if not registry.active(model):
+        return None
+    dynamic = v is not None
+    a = jnp.asarray(model.structure.element_nodes)
+    ve = (jnp.concatenate([v[a], v[a + 1]], axis=1) if dynamic
+          else jnp.zeros((model.structure.n_elements, 12), p.dtype))
+
+    def one(RA, pA, RB, pB, ve, parts):
+        def f(y):
+            RA1, pA1 = lie.compose_exp(RA, pA, y[:6])
+            RB1, pB1 = lie.compose_exp(RB, pB, y[6:12])
+            u = ve + y[12:] if dynamic else ve
+            value = registry.forces(element_state(RA1, pA1, RB1, pB1, u, jnp.zeros_like(ve)),
+                                    parts, lam)
+            return value, value
+
+        jac, value = jax.jacfwd(f, has_aux=True)(jnp.zeros(24 if dynamic else 12, RA.dtype))
+        return value, jac[:, :12], jac[:, 12:] if dynamic else None
+
+    return jax.vmap(one)(*element_poses(model, R, p), ve, registry.element_parts(model))
+
+
 def element_data(model: Model, maps=None, masses=None) -> ElementData:
     """The per-element model arrays (E, ...) of :class:`~simsoft_jax.terms.ElementData`
-    (``maps``, ``masses``: element inertia in dynamics, None in statics)."""
+    (``maps``, ``masses``: element inertia in dynamics, None in statics; in dynamics the
+    section inertia includes what registered terms add,
+    :func:`~simsoft_jax.terms.registry.section_inertia`)."""
     n = model.length.shape[0]
     s = model.structure
     actuators = {}
@@ -198,12 +229,13 @@ def element_data(model: Model, maps=None, masses=None) -> ElementData:
         actuators.update(chamber_force=(member * force[:, None]).T,
                          chamber_offset=jnp.broadcast_to(model.chamber_offset,
                                                          (n,) + model.chamber_offset.shape))
-    return ElementData(model.d0, model.length, model.stiffness, model.inertia,
+    inertia = model.inertia if maps is None else registry.section_inertia(model)
+    return ElementData(model.d0, model.length, model.stiffness, inertia,
                        model.viscosity, model.distributed_world, model.distributed_local,
                        jnp.broadcast_to(model.gravity, (n, 3)), maps, masses,
                        model.element_point_dead, model.element_point_follower,
                        model.element_point_xi, model.mass_damping, **actuators,
-                       contact=contact_data(model))
+                       contact=contact_data(model), parts=registry.element_parts(model))
 
 
 def rod_end_flags(structure) -> np.ndarray:
@@ -435,6 +467,9 @@ def residual_and_tangent(model: Model, R, p, lam=1.0, tangent: str = "closed_for
         touch = contact_and_tangent(model, R, p)
         if touch is not None:
             f_el, k_el = f_el + touch[0], k_el + touch[1]
+        registered = registered_and_tangents(model, lam, R, p)
+        if registered is not None:
+            f_el, k_el = f_el + registered[0], k_el + registered[1]
     friction = static_friction_and_tangent(model, R, p, previous)
     if friction is not None:
         f_el, k_el = f_el + friction[0], k_el + friction[1]

@@ -18,6 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import obstacles
+from .terms import registry
 
 
 @dataclasses.dataclass(frozen=True)
@@ -139,7 +140,8 @@ def loads_at(model, t):
     """``model`` with its load arrays holding the total loads at time ``t`` (s): the
     constant ones plus every channel at its scale ``scale_k(t)``; tendon tensions and
     chamber pressures times their time laws; moving obstacles where they are at ``t``
-    (:func:`obstacles_at`)."""
+    (:func:`obstacles_at`); the registered terms' parts at ``t``
+    (:func:`~simsoft_jax.terms.registry.at_time`)."""
     model = _with_channels(model, scales(model.channels, t))
     changes = {}
     if model.structure.tendon_names:
@@ -148,6 +150,7 @@ def loads_at(model, t):
         changes["chamber_pressure"] = model.chamber_pressure * model.chamber_law.scales(t)
     if model.structure.moving_obstacles:
         changes["obstacles"], changes["obstacle_velocity"] = obstacles_at(model, t)
+    changes.update(registry.at_time(model, t))
     return model.replace(**changes) if changes else model
 
 

@@ -27,6 +27,7 @@ import numpy as np
 
 from . import geometry as geom
 from .actuator_tables import chamber_arrays, check_crossings, tendon_arrays
+from .field_tables import fluid_part, magnetic_part
 from .joint_layout import layout as joint_layout
 from .loads import LoadChannels, TimeLaws, build_channels, build_laws
 from .scene_contact import QUADRATURE_POINTS, contact_tables, motion_profiles
@@ -170,6 +171,9 @@ class Model:
     the slip scale of static friction (:mod:`simsoft_jax.terms.static_friction`);
     self_exclusion () m: the arclength within which a rod's own elements do not touch
     (rod-rod contact, :mod:`simsoft_jax.rod_pairs`).
+    magnetic (:class:`~simsoft_jax.terms.magnetic.MagneticPart`), fluid
+    (:class:`~simsoft_jax.terms.fluid.FluidPart`): the parts of the registered terms
+    (:mod:`simsoft_jax.terms.registry`), None when the scene lacks them.
     """
     structure: Structure
     R0: jax.Array
@@ -222,6 +226,8 @@ class Model:
     obstacle_velocity: jax.Array = None
     slip_displacement: jax.Array = None
     self_exclusion: jax.Array = None
+    magnetic: object = None
+    fluid: object = None
 
     def replace(self, **changes) -> "Model":
         """A copy with some arrays replaced (same structure: no recompilation).
@@ -578,6 +584,7 @@ def build_model(scene, device: bool = True) -> Model:
                   tendon_law=build_laws([t.profile for t in getattr(scene, "tendons", ())]),
                   chamber_law=build_laws([c.profile for c in getattr(scene, "chambers", ())]),
                   obstacle_law=build_laws(motion_profiles(obstacles)),
+                  magnetic=magnetic_part(scene), fluid=fluid_part(scene),
                   **{k: np.asarray(a, np.float64) for k, a in arrays.items()})
     # one batched transfer (a device_put per array costs more than the arrays' numbers)
     return jax.device_put(model) if device else model

@@ -25,6 +25,7 @@ from ._validate import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, fa
 from .scene_actuators import parse_chambers, parse_tendons
 from .scene_attachments import parse_masses, parse_offset
 from .scene_contact import check_self_contact, parse_contact, parse_obstacles
+from .scene_fields import check_fluid_rods, parse_fluid, parse_magnetic_field
 from .scene_mechanisms import check_mechanism, jointed_rods, parse_bodies, parse_joints
 from .scene_rods import parse_materials, parse_rod
 from .scene_limits import (MAX_ELEMENTS, MAX_STEPS, check_loads_on_held_nodes,
@@ -57,6 +58,8 @@ class Scene(SpecBase):
     chambers: tuple = ()              # ChamberSpec per [[chambers]] entry
     obstacles: tuple = ()             # ObstacleSpec per [[obstacles]] entry
     contact: object = None            # ContactSpec of [contact] (None: defaults)
+    magnetic_field: object = None     # MagneticFieldSpec of [magnetic_field] (None: no field)
+    fluid: object = None              # FluidSpec of [fluid] (None: no fluid)
 
     @classmethod
     def from_dict(cls, d: dict, base_dir: str | Path | None = None) -> "Scene":
@@ -84,7 +87,7 @@ class Scene(SpecBase):
 
 _TOP_KEYS = ("name", "solver", "gravity", "materials", "rods", "constraints", "loads",
              "initial_velocity", "masses", "bodies", "joints", "tendons", "chambers",
-             "obstacles", "contact")
+             "obstacles", "contact", "magnetic_field", "fluid")
 _SOLVER_KEYS = ("kind", "tolerance", "max_iterations", "load_steps", "level_tolerance",
                 "max_load_step", "t_end", "dt", "rho_inf", "save_every", "inertia", "tangent",
                 "max_steps")
@@ -145,6 +148,10 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
     obstacles = parse_obstacles(_array_of_tables(raw, "obstacles"), profile,
                                 solver.kind == "dynamic")
     contact = parse_contact(raw["contact"]) if "contact" in raw else None
+    magnetic_field = (parse_magnetic_field(raw["magnetic_field"], profile)
+                      if "magnetic_field" in raw else None)
+    fluid = parse_fluid(raw["fluid"]) if "fluid" in raw else None
+    check_fluid_rods(fluid, rods.values())
     check_self_contact(contact, solver.kind, bool(bodies or joints),
                        [o.name for o in obstacles], constraints, tendons)
     if solver.kind == "dynamic":
@@ -173,7 +180,8 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
     return Scene(name=name, solver=solver, gravity=gravity, rods=tuple(rods.values()),
                  constraints=constraints, loads=loads, initial_velocity=velocities,
                  source=None, raw=raw, masses=masses, bodies=bodies, joints=joints,
-                 tendons=tendons, chambers=chambers, obstacles=obstacles, contact=contact)
+                 tendons=tendons, chambers=chambers, obstacles=obstacles, contact=contact,
+                 magnetic_field=magnetic_field, fluid=fluid)
 
 
 def _parse_solver(value: Any) -> SolverSettings:

@@ -14,6 +14,7 @@ from ._validate import (check_keys, choice, fail, index, integer, join, number, 
                         string, table, vector)
 from .materials import BUILTIN_MATERIALS, Material, get_material
 from .scene_attachments import parse_section_inertia, parse_stiffness
+from .scene_fields import ROD_MAGNET_KEYS, parse_hydraulic_diameter, parse_magnet
 from .scene_initial import parse_initial
 from .scene_limits import MAX_ELEMENTS, check_elements
 from .scene_specs import GeometrySpec, RodSpec, SegmentSpec, node_fractions
@@ -21,9 +22,10 @@ from .sections import Section, circle, rectangle, semicircle, tube
 
 MATERIAL_KEYS = ("name", "E", "G", "nu", "density", "viscosity", "mass_damping")
 ROD_KEYS = ("name", "material", "section", "shear_coefficients", "stiffness", "inertia",
-             "elements", "geometry", "base", "initial", "segments", "contact_radius")
+             "elements", "geometry", "base", "initial", "segments", "contact_radius",
+             "hydraulic_diameter", *ROD_MAGNET_KEYS)
 SEGMENT_KEYS = ("elements", "material", "section", "shear_coefficients", "stiffness",
-                 "inertia", "length")
+                 "inertia", "length", *ROD_MAGNET_KEYS)
 SECTIONS = {"circle": (circle, ("diameter",)),
              "tube": (tube, ("outer_diameter", "inner_diameter")),
              "rectangle": (rectangle, ("width", "height")),
@@ -97,7 +99,8 @@ def _parse_properties(r: dict, path: str, materials: dict[str, Material],
                 fail(index(kpath, j), f"must be > 0, got {kv}")
         shear = (float(values[0]), float(values[1]))
     return dict(material=material, section=section, shear_coefficients=shear,
-                stiffness=readonly(stiffness), inertia=readonly(inertia))
+                stiffness=readonly(stiffness), inertia=readonly(inertia),
+                magnetic_moment=parse_magnet(r, path, section))
 
 
 def _parse_segments(value: Any, path: str, materials: dict[str, Material],
@@ -176,6 +179,7 @@ def parse_rod(r: dict, path: str, materials: dict[str, Material],
 
     if "contact_radius" in r:
         initial["contact_radius"] = positive(r["contact_radius"], join(path, "contact_radius"))
+    initial.update(parse_hydraulic_diameter(r, path))
     return RodSpec(name=name, **props, elements=elements, geometry=geometry,
                    base_position=readonly(position), base_rotation=readonly(rotation),
                    segments=segments, **initial)

@@ -70,6 +70,8 @@ class RodSpec(SpecBase):
     initial_velocities: np.ndarray | None = None  # (nodes, 6) body [v; w] (a restart)
     segments: tuple | None = None     # SegmentSpec per consecutive piece (None: uniform rod)
     contact_radius: float | None = None   # m, overrides [contact].radius for this rod
+    magnetic_moment: np.ndarray | None = None  # (3,) A m per unit length, section frame
+    hydraulic_diameter: float | None = None    # m, the diameter fluid loads act on
 
     @property
     def nodes(self) -> int:
@@ -109,6 +111,7 @@ class SegmentSpec(SpecBase):
     stiffness: np.ndarray | None
     inertia: np.ndarray | None
     length: float | None = None       # m of arc length (None: the rod's elements are equal)
+    magnetic_moment: np.ndarray | None = None  # (3,) A m per unit length (None: the rod's)
 
 
 @dataclass(frozen=True, eq=False)

@@ -31,7 +31,8 @@ DOC = DOC_PATH.read_text(encoding="utf-8")
 SOURCES = [Path(scene_module.__file__)] + [Path(scene_module.__file__).with_name(name) for name in
                                             ("scene_rods.py", "scene_initial.py", "_validate.py",
                                              "scene_contact.py", "scene_actuators.py",
-                                             "scene_attachments.py", "scene_mechanisms.py")]
+                                             "scene_attachments.py", "scene_mechanisms.py",
+                                             "scene_fields.py")]
 
 
 def _strings(node: ast.AST, names: dict[str, ast.AST], part: str = "all") -> set[str]:

@@ -24,12 +24,12 @@ from ..assembly import (_nodal_load, apply_constraints, assemble_blocks, assembl
                         dead_distributed_force, element_data, element_force_and_tangent,
                         element_poses, follower_distributed_load, nodal_load_and_tangent,
                         attachments_and_tangents, contact_and_tangent,
-                        jacfwd_terms_and_tangent)
+                        jacfwd_terms_and_tangent, registered_and_tangents)
 from ..drives import reduce, slide_maps
 from ..loads import loads_at
 from ..model import Model
 from ..terms import autodiff as term_tangents
-from ..terms import element_state
+from ..terms import element_state, registry
 from .scheme import State, fields, iteration_factors
 
 
@@ -41,8 +41,10 @@ class ElementInertia(NamedTuple):
 
 
 def element_inertia(model: Model) -> ElementInertia:
-    """Field maps and mass matrices of all elements from ``model.inertia`` (traced)."""
-    return ElementInertia(*inertia.element_inertia(model.d0, model.length, model.inertia,
+    """Field maps and mass matrices of all elements from ``model.inertia`` (traced), with
+    the inertia registered terms add (:func:`~simsoft_jax.terms.registry.section_inertia`)."""
+    return ElementInertia(*inertia.element_inertia(model.d0, model.length,
+                                                   registry.section_inertia(model),
                                                    model.structure.inertia_kind))
 
 
@@ -52,7 +54,8 @@ def _element_args(model: Model, inert: ElementInertia, R, p, v, vd):
     ve = jnp.concatenate([v[a], v[a + 1]], axis=1)
     vde = jnp.concatenate([vd[a], vd[a + 1]], axis=1)
     return (R[a], d, ve, vde, inert.maps, inert.masses, model.d0, model.length,
-            model.stiffness, model.inertia, model.viscosity, model.distributed_world,
+            model.stiffness, registry.section_inertia(model), model.viscosity,
+            model.distributed_world,
             model.distributed_local, model.mass_damping)
 
 
@@ -132,6 +135,10 @@ def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p,
         if touch is not None:
             f_el, K_el = f_el + touch[0], K_el + touch[1]
             C_el = C_el if touch[2] is None else C_el + touch[2]
+        registered = registered_and_tangents(model, 1.0, R, p, v)
+        if registered is not None:
+            f_el, K_el, C_el = (f_el + registered[0], K_el + registered[1],
+                                C_el + registered[2])
     TA, TB = T[a], T[a + 1]
     K_el = jnp.concatenate([K_el[:, :, :6] @ TA, K_el[:, :, 6:] @ TB], axis=2)
     S_el = M_el * beta_p + C_el * gamma_p + K_el

@@ -14,6 +14,7 @@ from ..inertia import centre_of_mass, line_density
 from ..linalg import block_solve, factorize_coupled, solve_coupled
 from ..model import Model
 from ..status import Status
+from ..terms import registry
 from .settings import StaticSettings
 
 
@@ -78,7 +79,7 @@ def load_scale(model: Model):
         r = jnp.linalg.norm(model.chamber_offset, axis=-1)
         f = model.chamber_pressure * model.chamber_area
         total = total + jnp.sum(f ** 2 * (1.0 + (r / model.char_length) ** 2))
-    return jnp.sqrt(total)
+    return jnp.sqrt(total + registry.load_scale_squared(model))
 
 
 def _update(R, p, dx):

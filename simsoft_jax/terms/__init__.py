@@ -48,7 +48,8 @@ class ElementData(NamedTuple):
     do not pass the element), tendon_offset, tendon_slope (M,Q,2) (:mod:`.tendons`),
     chamber_force (C,) pressure times area (N), chamber_offset (C,2) (:mod:`.chambers`);
     None when the scene has no tendons / chambers; contact: :class:`.contact.ContactData`
-    (None in scenes without obstacles)."""
+    (None in scenes without obstacles); parts: ``{name: slice}`` of the registered terms
+    the model has (:func:`.registry.element_parts`; None without any)."""
     d0: jax.Array
     length: jax.Array
     stiffness: jax.Array
@@ -69,6 +70,7 @@ class ElementData(NamedTuple):
     chamber_force: jax.Array = None
     chamber_offset: jax.Array = None
     contact: tuple = None
+    parts: dict = None
 
 
 def element_state(RA, pA, RB, pB, ve, vde) -> Element:

@@ -14,13 +14,15 @@ import jax.numpy as jnp
 from .. import lie
 from .. import actuator_tables
 from . import (Element, chambers, contact, distributed, elastic, element_state, inertia,
-               mass_damping, nodal, offset_gravity, point_in_element, tendons, viscous)
+               mass_damping, nodal, offset_gravity, point_in_element, registry, tendons,
+               viscous)
 
 
 def element_residual(structure, lam, dynamic: bool):
     """``f(el: Element, data: ElementData) -> (12,)``: the sum of the element terms of
     ``structure`` at load level ``lam`` (inertia, viscosity and mass damping only when
-    ``dynamic``)."""
+    ``dynamic``), plus the registered terms whose slices ``data.parts`` holds
+    (:mod:`.registry`)."""
     s = structure
     dead = s.has_gravity or s.has_distributed_world
     actuators = actuator_residual(structure, lam)
@@ -48,7 +50,8 @@ def element_residual(structure, lam, dynamic: bool):
                                   s.contact_points, dynamic and s.has_friction)
         if actuators is not None:
             r = r + actuators(el, data)
-        return r
+        registered = registry.forces(el, data.parts, lam)
+        return r if registered is None else r + registered
 
     return residual
 
