@@ -1,35 +1,40 @@
-"""Global static residual and block-tridiagonal tangent from vmapped element kernels.
+"""The one assembler: residuals and tangents of every term, for statics, dynamics, the
+implicit derivative and the stability count.
 
-Residual convention (spec S47, S70): ``r = f_int - lam * f_ext`` per node (N,6), in the
-nodal frames. Tangent (left-invariant, S70): ``K_t = d r(q o exp(xi)) / d xi`` at xi = 0,
-built from per-element 12x12 blocks (never the global residual). The residual itself is the
-sum of the residual terms of :mod:`simsoft_jax.terms`. Two tangent paths, chosen for a
-whole solve by ``tangent``: ``"closed_form"`` (the elastic part, gravity, world-frame
-distributed loads and nodal loads in closed form, :func:`element_force_and_tangent`;
-follower distributed loads by ``jax.jacfwd`` in 6 directions) and ``"autodiff"``
-(``jax.jacfwd`` of the sum of the terms in the 12 frame perturbations,
-:mod:`simsoft_jax.terms.autodiff`); both give the same exact tangent. Point loads inside
-elements, the weight's moment at an offset centre of mass, tendons and pressure chambers
-take ``jax.jacfwd`` on both paths (:func:`jacfwd_terms_and_tangent`). They are assembled
-into a block-tridiagonal matrix of 6x6 blocks
-``(diag (N,6,6), upper (N-1,6,6), lower (N-1,6,6))``, ``upper[i] = K[i, i+1]``,
-``lower[i] = K[i+1, i]``. Held dofs get an identity row/column and a zero residual, so the
-structure never changes. Linear solves: :mod:`simsoft_jax.linalg`.
+:func:`element_blocks` and :func:`node_blocks` give :class:`Blocks` ``(r, K, C, M)`` per
+element (12 rows) and per node (6 rows): the residual ``r = f_int + f_inertia - lam f_ext``
+in the nodal frames (spec S47, S70), its left-invariant tangent ``K = d r(q o exp(xi)) /
+d xi`` at xi = 0 and, in dynamics, its derivatives ``C`` in the nodal body velocities and
+``M`` in the accelerations. :func:`residual_and_tangent` (statics) and
+:func:`simsoft_jax.dynamics.residual.residual_and_iteration_matrix` (dynamics) only combine
+them. The residual is the sum of the terms of :mod:`simsoft_jax.terms` (those the
+structure has, and the registered ones the Model holds, :mod:`simsoft_jax.terms.registry`).
+Two tangent paths, chosen for a whole solve by ``tangent``: ``"autodiff"`` (``jax.jacfwd``
+of the sum of the element terms, :mod:`simsoft_jax.terms.autodiff`) and ``"closed_form"``
+(elastic stress, viscous stress, inertia, gravity, world-frame distributed loads and nodal
+loads in closed form; follower distributed loads, contact with friction and the
+registered terms (:mod:`simsoft_jax.terms.registry`) by ``jax.jacfwd`` of their own sums); both give the same exact
+tangent (tests/test_tangent_paths.py). Element blocks are assembled into a
+block-tridiagonal matrix of 6x6 blocks ``(diag (N,6,6), upper (N-1,6,6), lower
+(N-1,6,6))``, ``upper[i] = K[i, i+1]``, ``lower[i] = K[i+1, i]``. Held dofs get an identity
+row/column and a zero residual, so the structure never changes. Linear solves:
+:mod:`simsoft_jax.linalg`.
 """
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import element, lie
+from . import element, inertia, lie
 from .inertia import line_density
 from .model import Model
 from .terms import ElementData, element_state
 from .terms import autodiff as term_tangents
 from .terms import masses as mass_term
-from .terms import (contact, offset_gravity, offset_loads, point_in_element, registry,
-                   static_friction)
+from .terms import contact, offset_loads, registry, static_friction
 
 TANGENTS = ("closed_form", "autodiff")
 
@@ -117,33 +122,6 @@ def element_term_and_tangent(model: Model, R, p, term):
     return jax.vmap(one)(*element_poses(model, R, p), element_data(model))
 
 
-def jacfwd_terms_and_tangent(model: Model, lam, R, p):
-    """Nodal forces (E,12) and tangents (E,12,12) of the point loads inside elements
-    (:mod:`simsoft_jax.terms.point_in_element`; spec S38), of the weight's moment at an
-    offset centre of mass (:mod:`simsoft_jax.terms.offset_gravity`) and of the tendons and
-    pressure chambers (:mod:`simsoft_jax.terms.tendons`, :mod:`~simsoft_jax.terms.chambers`),
-    by :func:`element_term_and_tangent`; None when the scene has none."""
-    s = model.structure
-    point = s.has_point_dead or s.has_point_follower
-    offset = s.has_gravity and s.inertia_offset
-    actuators = term_tangents.actuator_residual(s, lam)
-    if not (point or offset) and actuators is None:
-        return None
-
-    def term(el, data):
-        r = jnp.zeros(12, el.d.dtype)
-        if point:
-            r = r + point_in_element.force(el, data, lam, s.has_point_dead,
-                                           s.has_point_follower)
-        if offset:
-            r = r + offset_gravity.force(el, data, lam)
-        if actuators is not None:
-            r = r + actuators(el, data)
-        return r
-
-    return element_term_and_tangent(model, R, p, term)
-
-
 def contact_and_tangent(model: Model, R, p, v=None):
     """Nodal forces (E,12) of the contact with the obstacles
     (:mod:`simsoft_jax.terms.contact`), their left-invariant tangents (E,12,12) and, in
@@ -186,28 +164,43 @@ def registered_and_tangents(model: Model, lam, R, p, v=None):
     """Nodal forces (E,12) of the registered terms (:mod:`simsoft_jax.terms.registry`),
     their left-invariant tangents (E,12,12) by ``jax.jacfwd`` in the 12 right
     perturbations of the two nodal frames and, in dynamics (``v`` (N,6) the nodal body
-    velocities), their derivatives in the nodal velocities (E,12,12) (else None). None
-    when the model has no registered term."""
-    if not registry.active(model):
-        return None
+    velocities), the derivatives (E,12,12) of the terms that read velocities in the nodal
+    velocities (else None). Terms that do not read velocities are differentiated in the
+    frames only. None when the model has no registered term."""
     dynamic = v is not None
+    groups = [(registry.element_parts(model, velocity=False), False)]
+    if dynamic:
+        groups.append((registry.element_parts(model, velocity=True), True))
+    else:   # in statics every term is evaluated at rest
+        groups[0] = (registry.element_parts(model), False)
     a = jnp.asarray(model.structure.element_nodes)
-    ve = (jnp.concatenate([v[a], v[a + 1]], axis=1) if dynamic
-          else jnp.zeros((model.structure.n_elements, 12), p.dtype))
+    zero_v = jnp.zeros((model.structure.n_elements, 12), p.dtype)
+    ve = jnp.concatenate([v[a], v[a + 1]], axis=1) if dynamic else zero_v
+    out = None
+    for parts, with_velocity in groups:
+        if parts is None:
+            continue
 
-    def one(RA, pA, RB, pB, ve, parts):
-        def f(y):
-            RA1, pA1 = lie.compose_exp(RA, pA, y[:6])
-            RB1, pB1 = lie.compose_exp(RB, pB, y[6:12])
-            u = ve + y[12:] if dynamic else ve
-            value = registry.forces(element_state(RA1, pA1, RB1, pB1, u, jnp.zeros_like(ve)),
-                                    parts, lam)
-            return value, value
+        def one(RA, pA, RB, pB, ve, parts, with_velocity=with_velocity):
+            def f(y):
+                RA1, pA1 = lie.compose_exp(RA, pA, y[:6])
+                RB1, pB1 = lie.compose_exp(RB, pB, y[6:12])
+                u = ve + y[12:] if with_velocity else ve
+                el = element_state(RA1, pA1, RB1, pB1, u, jnp.zeros_like(ve))
+                value = registry.forces(el, parts, lam)
+                return value, value
 
-        jac, value = jax.jacfwd(f, has_aux=True)(jnp.zeros(24 if dynamic else 12, RA.dtype))
-        return value, jac[:, :12], jac[:, 12:] if dynamic else None
+            jac, value = jax.jacfwd(f, has_aux=True)(
+                jnp.zeros(24 if with_velocity else 12, RA.dtype))
+            return value, jac[:, :12], jac[:, 12:] if with_velocity else None
 
-    return jax.vmap(one)(*element_poses(model, R, p), ve, registry.element_parts(model))
+        f_el, k_el, c_el = jax.vmap(one)(*element_poses(model, R, p), ve, parts)
+        if out is None:
+            out = (f_el, k_el, c_el)
+        else:
+            c = c_el if out[2] is None else (out[2] if c_el is None else out[2] + c_el)
+            out = (out[0] + f_el, out[1] + k_el, c)
+    return out
 
 
 def element_data(model: Model, maps=None, masses=None) -> ElementData:
@@ -216,26 +209,12 @@ def element_data(model: Model, maps=None, masses=None) -> ElementData:
     section inertia includes what registered terms add,
     :func:`~simsoft_jax.terms.registry.section_inertia`)."""
     n = model.length.shape[0]
-    s = model.structure
-    actuators = {}
-    if s.tendon_names:
-        member = jnp.asarray(np.array(s.tendon_elements, float))           # (M, E)
-        actuators.update(tendon_tension=(member * model.tendon_tension[:, None]).T,
-                         tendon_offset=jnp.swapaxes(model.tendon_offset, 0, 1),
-                         tendon_slope=jnp.swapaxes(model.tendon_slope, 0, 1))
-    if s.chamber_names:
-        member = jnp.asarray(np.array(s.chamber_elements, float))          # (C, E)
-        force = model.chamber_pressure * model.chamber_area
-        actuators.update(chamber_force=(member * force[:, None]).T,
-                         chamber_offset=jnp.broadcast_to(model.chamber_offset,
-                                                         (n,) + model.chamber_offset.shape))
     inertia = model.inertia if maps is None else registry.section_inertia(model)
     return ElementData(model.d0, model.length, model.stiffness, inertia,
                        model.viscosity, model.distributed_world, model.distributed_local,
                        jnp.broadcast_to(model.gravity, (n, 3)), maps, masses,
-                       model.element_point_dead, model.element_point_follower,
-                       model.element_point_xi, model.mass_damping, **actuators,
-                       contact=contact_data(model), parts=registry.element_parts(model))
+                       model.mass_damping, contact=contact_data(model),
+                       parts=registry.element_parts(model))
 
 
 def rod_end_flags(structure) -> np.ndarray:
@@ -308,14 +287,6 @@ def element_poses(model: Model, R, p):
 def _nodal_load(model: Model, lam):
     """``-lam f_ext`` at one node (:mod:`simsoft_jax.terms.nodal`; spec S43)."""
     return term_tangents.node_residual(model.structure, lam)
-
-
-def _element_args(model: Model, R, p):
-    a = jnp.asarray(model.structure.element_nodes)
-    d = jax.vmap(element.relative_twist)(R[a], p[a], R[a + 1], p[a + 1])
-    return (R[a], d, model.d0, model.length, model.stiffness,
-            jax.vmap(line_density)(model.inertia),
-            model.distributed_world, model.distributed_local)
 
 
 def _placed(n_rows, rows, x):
@@ -414,74 +385,189 @@ def attachments_and_tangents(model: Model, lam, R, v=None, vd=None, dynamic: boo
     return tuple(out) if dynamic else (out[0], out[1], None, None)
 
 
-def residual(model: Model, R, p, lam=1.0, previous=None):
-    """Global residual (N,6), held dofs zeroed (spec S47/S70): the sum of the terms, with
-    the quasi-static friction against the frames ``previous`` of the last load level
-    (:func:`static_friction_and_tangent`; None: no friction)."""
+class Blocks(NamedTuple):
+    """What the assembler gives for elements (rows of 12) or nodes (rows of 6): the
+    residual r, its left-invariant tangent K in the frame perturbations and, in dynamics,
+    its derivatives C in the body velocities and M in the accelerations (None in statics)."""
+    r: jax.Array
+    K: jax.Array
+    C: jax.Array = None
+    M: jax.Array = None
+
+
+def element_velocities(model: Model, v, vd):
+    """Nodal body velocities and accelerations (N,6) gathered per element: (E,12) each."""
+    a = jnp.asarray(model.structure.element_nodes)
+    return (jnp.concatenate([v[a], v[a + 1]], axis=1),
+            jnp.concatenate([vd[a], vd[a + 1]], axis=1))
+
+
+def _static_kernel(model: Model, lam):
+    """One element's closed-form forces and tangent in statics: elastic stress, dead and
+    follower distributed loads (spec S42, S44; follower loads by jacfwd)."""
+    dead = dead_distributed_force(model, lam)
+    follower = follower_distributed_load(model, lam)
+
+    def kernel(RA, d, d0, length, stiffness, rho_a, q_world, q_local):
+        P = element.strain_map(d)
+        return element_force_and_tangent(
+            P, d, element.section_stress(stiffness, (d - d0) / length),
+            element.section_stress_jacobian(stiffness, length), RA, length,
+            dead, follower, rho_a, q_world, q_local)
+
+    return kernel
+
+
+def _dynamic_kernel(model: Model, lam):
+    """One element's closed-form blocks in dynamics: the static kernel's terms, the
+    viscous stress ``P^T Ups P v / L`` (S42), the gyroscopic force (jacfwd in the 12
+    velocities), mass damping ``c M_e v_e`` and the inertia ``M_e vdot_e``."""
     s = model.structure
-    zeros = jnp.zeros((s.n_elements, 12), p.dtype)
-    element_residual = term_tangents.element_residual(s, lam, dynamic=False)
-    f_el = jax.vmap(lambda RA, pA, RB, pB, data: element_residual(
-        element_state(RA, pA, RB, pB, zeros[0], zeros[0]), data))(
-        *element_poses(model, R, p), element_data(model))
+    dead = dead_distributed_force(model, lam)
+    follower = follower_distributed_load(model, lam)
+
+    def kernel(RA, d, ve, vde, maps, mass, d0, length, stiffness, inert, visc, qw, ql, c_mass):
+        P = element.strain_map(d)
+        stress = element.section_stress(stiffness, (d - d0) / length)
+        stress_jac = element.section_stress_jacobian(stiffness, length)
+        gyro = lambda u: inertia.gyroscopic_force(  # noqa: E731
+            maps, length, inert, u, s.inertia_kind, mass)
+        C, g = jax.jacfwd(lambda u: (gyro(u),) * 2, has_aux=True)(ve)
+        if s.has_viscosity:
+            rate = lambda dd: element.strain_map(dd) @ ve / length  # noqa: E731
+            stress = stress + visc * rate(d)
+            stress_jac = stress_jac + visc[:, None] * jax.jacfwd(rate)(d)
+            C = C + P.T @ (visc[:, None] * P) / length
+        if s.has_mass_damping:  # c M_e v_e: M_e is fixed by the reference shape, so C only
+            g, C = g + c_mass * (mass @ ve), C + c_mass * mass
+        f, K = element_force_and_tangent(P, d, stress, stress_jac, RA, length, dead, follower,
+                                         inertia.line_density(inert), qw, ql)
+        return f + mass @ vde + g, K, C, mass
+
+    return kernel
+
+
+def element_blocks(model: Model, lam, R, p, v=None, vd=None, inert=None,
+                   tangent: str = "closed_form") -> Blocks:
+    """The assembler's element part: :class:`Blocks` (E, ...) of every element term at
+    load level ``lam`` (statics) or of the dynamic residual (``inert`` = (maps, masses),
+    :func:`simsoft_jax.dynamics.residual.element_inertia`, with the nodal velocities and
+    accelerations ``v, vd`` (N,6)). ``tangent``: "autodiff" differentiates the sum of the
+    terms (:mod:`simsoft_jax.terms.autodiff`); "closed_form" takes the elastic, viscous,
+    inertial and distributed-load blocks in closed form and the other terms by
+    ``jax.jacfwd`` of their own sums (contact, and the registered terms by
+    :func:`registered_and_tangents`: point loads in elements, offset gravity, tendons,
+    chambers, magnetic couples, fluid loads)."""
+    s = model.structure
+    dynamic = inert is not None
+    a = jnp.asarray(s.element_nodes)
+    if dynamic:
+        ve, vde = element_velocities(model, v, vd)
+        data = element_data(model, inert.maps, inert.masses)
+    else:
+        ve = vde = jnp.zeros((s.n_elements, 12), p.dtype)
+        data = element_data(model)
+    if tangent == "autodiff":
+        return Blocks(*jax.vmap(term_tangents.element_tangents(s, lam, dynamic))(
+            *element_poses(model, R, p), ve, vde, data))
+    d = jax.vmap(element.relative_twist)(R[a], p[a], R[a + 1], p[a + 1])
+    if dynamic:
+        f, K, C, M = jax.vmap(_dynamic_kernel(model, lam))(
+            R[a], d, ve, vde, inert.maps, inert.masses, model.d0, model.length,
+            model.stiffness, data.inertia, model.viscosity, model.distributed_world,
+            model.distributed_local, model.mass_damping)
+    else:
+        f, K = jax.vmap(_static_kernel(model, lam))(
+            R[a], d, model.d0, model.length, model.stiffness,
+            jax.vmap(line_density)(model.inertia), model.distributed_world,
+            model.distributed_local)
+        C = M = None
+    for extra in (contact_and_tangent(model, R, p, v), registered_and_tangents(model, lam, R, p, v)):
+        if extra is None:
+            continue
+        f, K = f + extra[0], K + extra[1]
+        if dynamic and extra[2] is not None:
+            C = C + extra[2]
+    return Blocks(f, K, C, M)
+
+
+def node_blocks(model: Model, lam, R, v=None, vd=None, dynamic: bool = False,
+                tangent: str = "closed_form") -> Blocks | None:
+    """The assembler's node part: :class:`Blocks` (N, ...) of the nodal loads (spec S43)
+    and of the attached masses and offset loads (:func:`attachments_and_tangents`); C and
+    M zeros in dynamics, None in statics; None when the scene has no node term."""
+    s = model.structure
+    loads = (nodal_load_and_tangent(model, lam, R, tangent)
+             if s.has_nodal_dead or s.has_nodal_follower else None)
+    attached = attachments_and_tangents(model, lam, R, v, vd, dynamic)
+    if loads is None and attached is None:
+        return None
+    n, dtype = s.n_nodes, R.dtype
+    zeros = jnp.zeros((n, 6, 6), dtype)
+    r, K = jnp.zeros((n, 6), dtype), zeros
+    C = M = zeros if dynamic else None
+    if loads is not None:
+        r, K = r + loads[0], K + loads[1]
+    if attached is not None:
+        r, K = r + attached[0], K + attached[1]
+        if dynamic:
+            C, M = C + attached[2], M + attached[3]
+    return Blocks(r, K, C, M)
+
+
+def residual_vector(model: Model, lam, R, p, v=None, vd=None, inert=None, previous=None):
+    """Global residual (N,6) of every term, unmasked (spec S47/S70): the sum of the
+    element terms (:func:`simsoft_jax.terms.autodiff.element_residual`, in dynamics with
+    ``inert``, ``v``, ``vd`` as for :func:`element_blocks`), the quasi-static friction
+    against the frames ``previous`` of the last load level (statics;
+    :func:`static_friction_and_tangent`) and the node terms."""
+    s = model.structure
+    dynamic = inert is not None
+    if dynamic:
+        ve, vde = element_velocities(model, v, vd)
+        data = element_data(model, inert.maps, inert.masses)
+    else:
+        ve = vde = jnp.zeros((s.n_elements, 12), p.dtype)
+        data = element_data(model)
+    terms = term_tangents.element_residual(s, lam, dynamic)
+    f_el = jax.vmap(lambda RA, pA, RB, pB, ve, vde, data: terms(
+        element_state(RA, pA, RB, pB, ve, vde), data))(*element_poses(model, R, p), ve, vde,
+                                                       data)
     friction = static_friction_and_tangent(model, R, p, previous, tangent=False)
     if friction is not None:
         f_el = f_el + friction[0]
     r = assemble_vector(s.n_nodes, s.element_nodes, f_el)
     if s.has_nodal_dead or s.has_nodal_follower:
         r = r + jax.vmap(_nodal_load(model, lam))(R, model.nodal_dead, model.nodal_follower)
-    attached = attachments_and_tangents(model, lam, R)
+    attached = attachments_and_tangents(model, lam, R, v, vd, dynamic)
     if attached is not None:
         r = r + attached[0]
-    return r * s.free_mask()
+    return r
+
+
+def residual(model: Model, R, p, lam=1.0, previous=None):
+    """Global static residual (N,6), held dofs zeroed (spec S47/S70): :func:`residual_vector`
+    at load level ``lam``, with the quasi-static friction against ``previous``."""
+    return residual_vector(model, lam, R, p, previous=previous) * model.structure.free_mask()
 
 
 def residual_and_tangent(model: Model, R, p, lam=1.0, tangent: str = "closed_form",
                          previous=None):
-    """Residual (N,6) and block-tridiagonal tangent ``(diag, upper, lower)`` (spec S70),
-    by the ``tangent`` path ("closed_form" or "autodiff", see the module docstring); with
+    """Static residual (N,6) and block-tridiagonal tangent ``(diag, upper, lower)`` (spec
+    S70) from :func:`element_blocks` and :func:`node_blocks` by the ``tangent`` path; with
     ``previous`` (the frames of the last load level) the quasi-static friction is added
     (by ``jax.jacfwd`` on both paths, :func:`static_friction_and_tangent`)."""
     s = model.structure
-    if tangent == "autodiff":
-        zero = jnp.zeros(12, p.dtype)
-        tangents = term_tangents.element_tangents(s, lam, dynamic=False)
-        f_el, k_el, _, _ = jax.vmap(lambda RA, pA, RB, pB, data: tangents(
-            RA, pA, RB, pB, zero, zero, data))(*element_poses(model, R, p), element_data(model))
-    else:
-        dead = dead_distributed_force(model, lam)
-        follower = follower_distributed_load(model, lam)
-
-        def value_and_jac(RA, d, d0, length, stiffness, rho_a, q_world, q_local):
-            # elastic stress and loads in closed form (spec S42, S44); follower loads by jacfwd
-            P = element.strain_map(d)
-            return element_force_and_tangent(
-                P, d, element.section_stress(stiffness, (d - d0) / length),
-                element.section_stress_jacobian(stiffness, length), RA, length,
-                dead, follower, rho_a, q_world, q_local)
-
-        f_el, k_el = jax.vmap(value_and_jac)(*_element_args(model, R, p))
-        point = jacfwd_terms_and_tangent(model, lam, R, p)
-        if point is not None:
-            f_el, k_el = f_el + point[0], k_el + point[1]
-        touch = contact_and_tangent(model, R, p)
-        if touch is not None:
-            f_el, k_el = f_el + touch[0], k_el + touch[1]
-        registered = registered_and_tangents(model, lam, R, p)
-        if registered is not None:
-            f_el, k_el = f_el + registered[0], k_el + registered[1]
+    blocks = element_blocks(model, lam, R, p, tangent=tangent)
+    f_el, k_el = blocks.r, blocks.K
     friction = static_friction_and_tangent(model, R, p, previous)
     if friction is not None:
         f_el, k_el = f_el + friction[0], k_el + friction[1]
     r = assemble_vector(s.n_nodes, s.element_nodes, f_el)
     diag, upper, lower = assemble_blocks(s.n_nodes, s.element_nodes, k_el)
-    if s.has_nodal_dead or s.has_nodal_follower:
-        f_n, k_n = nodal_load_and_tangent(model, lam, R, tangent)
-        r = r + f_n
-        diag = diag + k_n
-    attached = attachments_and_tangents(model, lam, R)
-    if attached is not None:
-        r, diag = r + attached[0], diag + attached[1]
+    nodes = node_blocks(model, lam, R, tangent=tangent)
+    if nodes is not None:
+        r, diag = r + nodes.r, diag + nodes.K
     return apply_constraints(s.free_mask(), r, (diag, upper, lower))
 
 

@@ -138,19 +138,14 @@ def obstacles_at(model, t):
 
 def loads_at(model, t):
     """``model`` with its load arrays holding the total loads at time ``t`` (s): the
-    constant ones plus every channel at its scale ``scale_k(t)``; tendon tensions and
-    chamber pressures times their time laws; moving obstacles where they are at ``t``
-    (:func:`obstacles_at`); the registered terms' parts at ``t``
-    (:func:`~simsoft_jax.terms.registry.at_time`)."""
+    constant ones plus every channel at its scale ``scale_k(t)``; the registered terms'
+    time laws (tendon tensions, chamber pressures, the magnetic field;
+    :func:`~simsoft_jax.terms.registry.at_time`); moving obstacles where they are at ``t``
+    (:func:`obstacles_at`)."""
     model = _with_channels(model, scales(model.channels, t))
-    changes = {}
-    if model.structure.tendon_names:
-        changes["tendon_tension"] = model.tendon_tension * model.tendon_law.scales(t)
-    if model.structure.chamber_names:
-        changes["chamber_pressure"] = model.chamber_pressure * model.chamber_law.scales(t)
+    changes = registry.at_time(model, t)
     if model.structure.moving_obstacles:
         changes["obstacles"], changes["obstacle_velocity"] = obstacles_at(model, t)
-    changes.update(registry.at_time(model, t))
     return model.replace(**changes) if changes else model
 
 

@@ -170,7 +170,7 @@ def test_offset_weight_is_the_gradient_of_its_potential(offset_model):
         zero = jnp.zeros(12)
         f = jax.vmap(lambda RA, pA, RB, pB, data: offset_gravity.force(
             element_state(RA, pA, RB, pB, zero, zero), data, lam))(
-            *assembly.element_poses(model, R, p), assembly.element_data(model))
+            *assembly.element_poses(model, R, p), offset_gravity.per_element(model))
         return assembly.assemble_vector(s.n_nodes, s.element_nodes, f)
 
     def element_potential(RA, pA, RB, pB, length):

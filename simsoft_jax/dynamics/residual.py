@@ -1,16 +1,14 @@
 """The dynamic residual of one generalized-alpha step and its iteration matrix (spec S47,
-S61, S66), from vmapped element kernels.
+S61, S66).
 
-``F(w) = r(q(w), v(w), vdot(w), t_{n+1})``, the sum of the residual terms of
-:mod:`simsoft_jax.terms`, with the exact iteration matrix
-``M beta' + C_t gamma' + K_t T_SE3(w)`` built from element blocks, assembled into a
-block-tridiagonal matrix. Element blocks by the ``tangent`` path: "closed_form"
-(closed-form stress and dead-load tangents, ``jacfwd`` of the gyroscopic, follower-load,
-in-element point-load, tendon and chamber terms) or "autodiff" (``jax.jacfwd`` of the
-sum of the element terms in the frame perturbations, velocities and accelerations). Element inertia (field
-maps and mass matrices) is computed from the Model's sectional inertia inside the trace
-(:func:`element_inertia`), so a changed ``model.inertia`` changes everything it should,
-gradients included.
+``F(w) = r(q(w), v(w), vdot(w), t_{n+1})``, the sum of the residual terms, with the exact
+iteration matrix ``M beta' + C_t gamma' + K_t T_SE3(w)``, both from the one assembler of
+:mod:`simsoft_jax.assembly` (its element and node :class:`~simsoft_jax.assembly.Blocks`
+``(r, K, C, M)``, by either tangent path), assembled into a block-tridiagonal matrix.
+Element inertia (field maps and mass matrices) is computed from the Model's sectional
+inertia inside the trace (:func:`element_inertia`), so a changed ``model.inertia`` changes
+everything it should, gradients included. :func:`step_functions` adds the couplings beside
+the chains (joints, rod-rod contact, displacement-controlled tendons, sliding drives).
 """
 from __future__ import annotations
 
@@ -19,17 +17,13 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .. import element, inertia, lie, mechanisms, rod_pairs, tendon_control
-from ..assembly import (_nodal_load, apply_constraints, assemble_blocks, assemble_vector,
-                        dead_distributed_force, element_data, element_force_and_tangent,
-                        element_poses, follower_distributed_load, nodal_load_and_tangent,
-                        attachments_and_tangents, contact_and_tangent,
-                        jacfwd_terms_and_tangent, registered_and_tangents)
+from .. import inertia, lie, mechanisms, rod_pairs, tendon_control
+from ..assembly import (apply_constraints, assemble_blocks, assemble_vector, element_blocks,
+                        node_blocks, residual_vector)
 from ..drives import reduce, slide_maps
 from ..loads import loads_at
 from ..model import Model
-from ..terms import autodiff as term_tangents
-from ..terms import element_state, registry
+from ..terms import registry
 from .scheme import State, fields, iteration_factors
 
 
@@ -48,40 +42,13 @@ def element_inertia(model: Model) -> ElementInertia:
                                                    model.structure.inertia_kind))
 
 
-def _element_args(model: Model, inert: ElementInertia, R, p, v, vd):
-    a = jnp.asarray(model.structure.element_nodes)
-    d = jax.vmap(element.relative_twist)(R[a], p[a], R[a + 1], p[a + 1])
-    ve = jnp.concatenate([v[a], v[a + 1]], axis=1)
-    vde = jnp.concatenate([vd[a], vd[a + 1]], axis=1)
-    return (R[a], d, ve, vde, inert.maps, inert.masses, model.d0, model.length,
-            model.stiffness, registry.section_inertia(model), model.viscosity,
-            model.distributed_world,
-            model.distributed_local, model.mass_damping)
-
-
-def _element_velocities(model: Model, v, vd):
-    a = jnp.asarray(model.structure.element_nodes)
-    return (jnp.concatenate([v[a], v[a + 1]], axis=1),
-            jnp.concatenate([vd[a], vd[a + 1]], axis=1))
-
-
 def dynamic_residual(model: Model, inert: ElementInertia, R, p, v, vd, masked=True):
     """Global dynamic residual (N,6) (spec S47), held dofs zeroed (unless ``masked=False``),
     rod-rod contact included (:mod:`simsoft_jax.rod_pairs`; scenes with it have no sliding
     drive, the only caller of ``masked=False``). ``model`` holds the loads at the time of
     evaluation (:func:`loads.loads_at`)."""
     s = model.structure
-    residual = term_tangents.element_residual(s, 1.0, dynamic=True)
-    f = jax.vmap(lambda RA, pA, RB, pB, ve, vde, data: residual(
-        element_state(RA, pA, RB, pB, ve, vde), data))(
-        *element_poses(model, R, p), *_element_velocities(model, v, vd),
-        element_data(model, inert.maps, inert.masses))
-    r = assemble_vector(s.n_nodes, s.element_nodes, f)
-    if s.has_nodal_dead or s.has_nodal_follower:
-        r = r + jax.vmap(_nodal_load(model, 1.0))(R, model.nodal_dead, model.nodal_follower)
-    attached = attachments_and_tangents(model, 1.0, R, v, vd, dynamic=True)
-    if attached is not None:
-        r = r + attached[0]
+    r = residual_vector(model, 1.0, R, p, v, vd, inert)
     if s.self_contact:
         r = r + rod_pairs.residual(model, R, p)
     return r * s.free_mask() if masked else r
@@ -89,70 +56,26 @@ def dynamic_residual(model: Model, inert: ElementInertia, R, p, v, vd, masked=Tr
 
 def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p, slide=None,
                                   tangent: str = "closed_form"):
-    """Residual (N,6) and block-tridiagonal ``M beta' + C_t gamma' + K_t T(w)`` (S61, S66).
-    ``slide = (C, B, mask)`` (see :func:`drives.slide_maps`) reduces sliding drive nodes to their
-    slide unknown before the held dofs are eliminated. ``tangent``: the element-block path
-    (module docstring). Rod-rod contact is not in it: :func:`step_functions` borders it
-    on (:func:`simsoft_jax.rod_pairs.system`)."""
+    """Residual (N,6) and block-tridiagonal ``M beta' + C_t gamma' + K_t T(w)`` (S61, S66)
+    from the assembler's blocks (:func:`simsoft_jax.assembly.element_blocks`,
+    :func:`~simsoft_jax.assembly.node_blocks`). ``slide = (C, B, mask)`` (see
+    :func:`drives.slide_maps`) reduces sliding drive nodes to their slide unknown before the
+    held dofs are eliminated. ``tangent``: the element-block path. Rod-rod contact is not
+    in it: :func:`step_functions` borders it on (:func:`simsoft_jax.rod_pairs.system`)."""
     s = model.structure
     n = s.n_nodes
     a = jnp.asarray(s.element_nodes)
-    dead, follower = dead_distributed_force(model, 1.0), follower_distributed_load(model, 1.0)
     T = jax.vmap(lie.tangent_se3)(w)
-
-    def value_and_blocks(RA, d, ve, vde, maps, mass, d0, length, stiffness, inert, visc, qw, ql,
-                         c_mass):
-        # K_t: closed-form stress and load tangents (spec S42, S44), in the chart of S37;
-        # C_t: gyroscopic (jacfwd in the 12 velocities) and viscous P^T Ups P / L (S42)
-        P = element.strain_map(d)
-        stress = element.section_stress(stiffness, (d - d0) / length)
-        stress_jac = element.section_stress_jacobian(stiffness, length)
-        gyro = lambda u: inertia.gyroscopic_force(  # noqa: E731
-            maps, length, inert, u, s.inertia_kind, mass)
-        C, g = jax.jacfwd(lambda u: (gyro(u),) * 2, has_aux=True)(ve)
-        if s.has_viscosity:
-            rate = lambda dd: element.strain_map(dd) @ ve / length  # noqa: E731
-            stress = stress + visc * rate(d)
-            stress_jac = stress_jac + visc[:, None] * jax.jacfwd(rate)(d)
-            C = C + P.T @ (visc[:, None] * P) / length
-        if s.has_mass_damping:  # c M_e v_e: M_e is fixed by the reference shape, so C only
-            g, C = g + c_mass * (mass @ ve), C + c_mass * mass
-        f, K = element_force_and_tangent(P, d, stress, stress_jac, RA, length, dead, follower,
-                                         inertia.line_density(inert), qw, ql)
-        return f + mass @ vde + g, K, C, mass
-
-    if tangent == "autodiff":
-        f_el, K_el, C_el, M_el = jax.vmap(term_tangents.element_tangents(s, 1.0, dynamic=True))(
-            *element_poses(model, R, p), *_element_velocities(model, v, vd),
-            element_data(model, inert.maps, inert.masses))
-    else:
-        f_el, K_el, C_el, M_el = jax.vmap(value_and_blocks)(
-            *_element_args(model, inert, R, p, v, vd))
-        point = jacfwd_terms_and_tangent(model, 1.0, R, p)
-        if point is not None:
-            f_el, K_el = f_el + point[0], K_el + point[1]
-        touch = contact_and_tangent(model, R, p, v)
-        if touch is not None:
-            f_el, K_el = f_el + touch[0], K_el + touch[1]
-            C_el = C_el if touch[2] is None else C_el + touch[2]
-        registered = registered_and_tangents(model, 1.0, R, p, v)
-        if registered is not None:
-            f_el, K_el, C_el = (f_el + registered[0], K_el + registered[1],
-                                C_el + registered[2])
+    el = element_blocks(model, 1.0, R, p, v, vd, inert, tangent)
     TA, TB = T[a], T[a + 1]
-    K_el = jnp.concatenate([K_el[:, :, :6] @ TA, K_el[:, :, 6:] @ TB], axis=2)
-    S_el = M_el * beta_p + C_el * gamma_p + K_el
-    r = assemble_vector(n, s.element_nodes, f_el)
-    diag, upper, lower = assemble_blocks(n, s.element_nodes, S_el)
-    if s.has_nodal_dead or s.has_nodal_follower:
-        f_n, k_n = nodal_load_and_tangent(model, 1.0, R, tangent)
-        r = r + f_n
-        diag = diag + k_n @ T
-    attached = attachments_and_tangents(model, 1.0, R, v, vd, dynamic=True)
-    if attached is not None:   # masses and offset loads: jacfwd on both paths
-        f_m, K_m, C_m, M_m = attached
-        r = r + f_m
-        diag = diag + M_m * beta_p + C_m * gamma_p + K_m @ T
+    K_el = jnp.concatenate([el.K[:, :, :6] @ TA, el.K[:, :, 6:] @ TB], axis=2)
+    r = assemble_vector(n, s.element_nodes, el.r)
+    diag, upper, lower = assemble_blocks(n, s.element_nodes,
+                                         el.M * beta_p + el.C * gamma_p + K_el)
+    nodes = node_blocks(model, 1.0, R, v, vd, dynamic=True, tangent=tangent)
+    if nodes is not None:
+        r = r + nodes.r
+        diag = diag + nodes.M * beta_p + nodes.C * gamma_p + nodes.K @ T
     if slide is not None:
         C, B, mask = slide
         r, blocks = reduce(C, B, r, (diag, upper, lower))

@@ -10,7 +10,7 @@ import jax.numpy as jnp
 
 from .. import lie, mechanisms, rod_pairs
 from ..assembly import residual_and_tangent
-from ..inertia import centre_of_mass, line_density
+from ..inertia import line_density
 from ..linalg import block_solve, factorize_coupled, solve_coupled
 from ..model import Model
 from ..status import Status
@@ -36,7 +36,9 @@ def _step_size(model, dx):
 
 
 def load_scale(model: Model):
-    """Weighted size (N) of the full external loads, the reference of the tolerance."""
+    """Weighted size (N) of the full external loads, the reference of the tolerance: the
+    nodal, distributed and attached loads here, the registered terms' declared shares
+    (:func:`simsoft_jax.terms.registry.load_scale_squared`)."""
     s = model.structure
     mask = s.free_mask()
     nodal = jnp.zeros_like(model.nodal_dead)
@@ -45,18 +47,10 @@ def load_scale(model: Model):
     if s.has_nodal_follower:
         nodal = nodal + jnp.abs(model.nodal_follower)
     total = jnp.sum(weighted_norm(model, nodal * mask) ** 2)
-    if s.has_point_dead or s.has_point_follower:
-        point = jnp.abs(model.element_point_dead) + jnp.abs(model.element_point_follower)
-        total = (total + jnp.sum(point[:, :3] ** 2)
-                 + jnp.sum((point[:, 3:] / model.char_length) ** 2))
     q = jnp.zeros_like(model.distributed_world)
     if s.has_gravity:
         rho_a = jax.vmap(line_density)(model.inertia)
         q = q + rho_a[:, None] * model.gravity
-        if s.inertia_offset:   # the weight's moment about the axis (offset centre of mass)
-            arm = jnp.linalg.norm(jax.vmap(centre_of_mass)(model.inertia), axis=1)
-            total = total + jnp.sum((model.length * rho_a * arm / model.char_length) ** 2
-                                    * jnp.sum(model.gravity ** 2))
     if s.has_distributed_world:
         q = q + model.distributed_world
     if s.has_distributed_local:
@@ -72,13 +66,6 @@ def load_scale(model: Model):
         total = total + jnp.sum(w ** 2) + jnp.sum(
             (jnp.linalg.norm(model.mass_offset, axis=1) * jnp.linalg.norm(w, axis=1)
              / model.char_length) ** 2)
-    if s.tendon_names:   # tendon tensions and the moments they make at their offsets
-        r = jnp.max(jnp.linalg.norm(model.tendon_offset, axis=-1), axis=(1, 2))
-        total = total + jnp.sum(model.tendon_tension ** 2 * (1.0 + (r / model.char_length) ** 2))
-    if s.chamber_names:  # pressure times area, and its moment at the chamber's offset
-        r = jnp.linalg.norm(model.chamber_offset, axis=-1)
-        f = model.chamber_pressure * model.chamber_area
-        total = total + jnp.sum(f ** 2 * (1.0 + (r / model.char_length) ** 2))
     return jnp.sqrt(total + registry.load_scale_squared(model))
 
 

@@ -10,14 +10,15 @@ take a node's rotation (3,3) and its load rows and return (6,).
 Tangents: :mod:`.autodiff` differentiates the sum of the active terms with ``jax.jacfwd``
 in the 12 right perturbations of the two nodal frames (and in the nodal velocities and
 accelerations in dynamics): the exact left-invariant tangent for any term. Terms with a
-closed-form tangent (elastic, viscous, dead and nodal loads; spec S42-S44) also feed the
-faster closed-form path of :mod:`simsoft_jax.assembly`; tests check both paths agree.
-Which terms are active is decided from the model's static structure: terms a scene does
-not have are not traced.
+closed-form tangent (elastic, viscous, inertial, dead and nodal loads; spec S42-S44) also
+feed the faster closed-form path of :mod:`simsoft_jax.assembly`; tests check both paths
+agree. The other element terms declare themselves once (:class:`Term`) and are collected
+in :mod:`.registry`. Which terms are active is decided from the model's static structure
+(or its pytree): terms a scene does not have are not traced.
 """
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import jax
 
@@ -41,15 +42,11 @@ class ElementData(NamedTuple):
     """An element's model arrays: d0 (6,), length (m), stiffness, inertia (6,) diagonals or
     (6,6) matrices (:mod:`simsoft_jax.sections`), viscosity (6,) diagonal, q_world,
     q_local (3,) distributed loads (N/m), gravity (3,) (m/s^2), maps (G,6,12) and mass
-    (12,12) (dynamics; see :mod:`simsoft_jax.inertia`), point_dead, point_follower (6,) a
-    point load inside the element at point_xi ()
-    (:mod:`.point_in_element`), mass_damping () mass-proportional damping constant (1/s,
-    :mod:`.mass_damping`; None in statics), tendon_tension (M,) N (zero for tendons that
-    do not pass the element), tendon_offset, tendon_slope (M,Q,2) (:mod:`.tendons`),
-    chamber_force (C,) pressure times area (N), chamber_offset (C,2) (:mod:`.chambers`);
-    None when the scene has no tendons / chambers; contact: :class:`.contact.ContactData`
-    (None in scenes without obstacles); parts: ``{name: slice}`` of the registered terms
-    the model has (:func:`.registry.element_parts`; None without any)."""
+    (12,12) (dynamics; see :mod:`simsoft_jax.inertia`), mass_damping () mass-proportional
+    damping constant (1/s, :mod:`.mass_damping`; None in statics); contact:
+    :class:`.contact.ContactData` (None in scenes without obstacles); parts: ``{name:
+    slice}`` of the registered terms the model has (:func:`.registry.element_parts`;
+    None without any)."""
     d0: jax.Array
     length: jax.Array
     stiffness: jax.Array
@@ -60,15 +57,7 @@ class ElementData(NamedTuple):
     gravity: jax.Array
     maps: jax.Array
     mass: jax.Array
-    point_dead: jax.Array
-    point_follower: jax.Array
-    point_xi: jax.Array
     mass_damping: jax.Array = None
-    tendon_tension: jax.Array = None
-    tendon_offset: jax.Array = None
-    tendon_slope: jax.Array = None
-    chamber_force: jax.Array = None
-    chamber_offset: jax.Array = None
     contact: tuple = None
     parts: dict = None
 
@@ -77,3 +66,32 @@ def element_state(RA, pA, RB, pB, ve, vde) -> Element:
     """:class:`Element` from the two nodal frames and the nodal velocities/accelerations."""
     d = _element.relative_twist(RA, pA, RB, pB)
     return Element(RA, d, _element.strain_map(d), ve, vde, pA)
+
+
+class Term(NamedTuple):
+    """One element term declared once (collected in :mod:`.registry`):
+
+    - ``name``: its key in :attr:`ElementData.parts`;
+    - ``present(model) -> bool``: whether the model has it (static: the structure or the
+      pytree decides; nothing of an absent term is traced);
+    - ``force(el, part, lam) -> (12,)``: its nodal forces on the residual side for one
+      element (:class:`Element`, the element's slice of its data), loads scaled by the load
+      level ``lam`` (1 in dynamics);
+    - ``per_element(model)``: that slice for all elements (a pytree of (E, ...) arrays);
+    - ``load_scale(model)``: the sum of squares (N^2, moments divided by the model's
+      ``char_length``) of its full loads, its share of the tolerance's reference;
+    - ``at_time(model, t) -> dict`` (optional): the Model fields its time law changes at
+      time ``t`` (:func:`simsoft_jax.loads.loads_at`);
+    - ``added_inertia(model) -> (E,6)`` (optional): section inertia it adds in dynamics;
+    - ``velocity``: whether ``force`` reads the nodal velocities (then its tangent is also
+      taken in them).
+    """
+    name: str
+    present: Callable
+    force: Callable
+    per_element: Callable
+    load_scale: Callable
+    at_time: Callable = None
+    added_inertia: Callable = None
+    velocity: bool = False
+

@@ -12,20 +12,18 @@ import jax
 import jax.numpy as jnp
 
 from .. import lie
-from .. import actuator_tables
-from . import (Element, chambers, contact, distributed, elastic, element_state, inertia,
-               mass_damping, nodal, offset_gravity, point_in_element, registry, tendons,
-               viscous)
+from . import (Element, contact, distributed, elastic, element_state, inertia, mass_damping,
+               nodal, registry, viscous)
 
 
 def element_residual(structure, lam, dynamic: bool):
     """``f(el: Element, data: ElementData) -> (12,)``: the sum of the element terms of
     ``structure`` at load level ``lam`` (inertia, viscosity and mass damping only when
-    ``dynamic``), plus the registered terms whose slices ``data.parts`` holds
-    (:mod:`.registry`)."""
+    ``dynamic``) and contact, plus the registered terms whose slices ``data.parts``
+    holds (:mod:`.registry`: point loads inside elements, offset gravity, tendons,
+    chambers, magnetic couples, fluid loads)."""
     s = structure
     dead = s.has_gravity or s.has_distributed_world
-    actuators = actuator_residual(structure, lam)
 
     def residual(el: Element, data):
         r = elastic.force(el, data)
@@ -38,40 +36,13 @@ def element_residual(structure, lam, dynamic: bool):
         if dead:
             r = r + distributed.dead_force(el, data, lam, s.has_gravity,
                                            s.has_distributed_world)
-        if s.has_gravity and s.inertia_offset:
-            r = r + offset_gravity.force(el, data, lam)
         if s.has_distributed_local:
             r = r + distributed.follower_force(el, data, lam)
-        if s.has_point_dead or s.has_point_follower:
-            r = r + point_in_element.force(el, data, lam, s.has_point_dead,
-                                           s.has_point_follower)
         if s.obstacle_kinds:
             r = r + contact.force(el, data.contact, data.length, s.obstacle_kinds,
                                   s.contact_points, dynamic and s.has_friction)
-        if actuators is not None:
-            r = r + actuators(el, data)
         registered = registry.forces(el, data.parts, lam)
         return r if registered is None else r + registered
-
-    return residual
-
-
-def actuator_residual(structure, lam):
-    """``f(el, data) -> (12,)``: the tendon and chamber terms of ``structure``
-    (:mod:`.tendons`, :mod:`.chambers`) at load level ``lam``, or None when it has
-    neither."""
-    s = structure
-    if not (s.tendon_names or s.chamber_names):
-        return None
-    weights = actuator_tables.gauss_rule(s.tendon_quadrature)[1]
-
-    def residual(el: Element, data):
-        r = jnp.zeros(12, el.d.dtype)
-        if s.tendon_names:
-            r = r + tendons.force(el, data, lam, weights)
-        if s.chamber_names:
-            r = r + chambers.force(el, data, lam)
-        return r
 
     return residual
 

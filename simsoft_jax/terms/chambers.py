@@ -16,7 +16,13 @@ the consistent distributed effect of a curved chamber. Without shear this is exa
 tendon at the same offset with tension ``-P A`` (:mod:`.tendons`). Limits: no wall
 stretch or bulging, no chamber-to-chamber coupling, area constant along the chamber.
 """
+from typing import NamedTuple
+
+import jax
 import jax.numpy as jnp
+import numpy as np
+
+from . import Term
 
 
 def volume_gradients(offsets):
@@ -27,8 +33,41 @@ def volume_gradients(offsets):
                             offsets[:, 1:], -offsets[:, :1]], axis=1)
 
 
-def force(el, data, lam):
+class ElementChambers(NamedTuple):
+    """One element's slice: force (C,) pressure times area (N; zero where a chamber does
+    not pass), offset (C,2) m."""
+    force: jax.Array
+    offset: jax.Array
+
+
+def force(el, part: ElementChambers, lam):
     """Nodal forces (12,) ``-lam P(d)^T sum_c (P_c A_c) grad_d V_e/A`` of the chambers
-    passing the element: ``data.chamber_force`` (C,) pressure times area (N; zero where a
-    chamber does not pass), ``data.chamber_offset`` (C,2)."""
-    return -lam * el.P.T @ (data.chamber_force @ volume_gradients(data.chamber_offset))
+    passing the element."""
+    return -lam * el.P.T @ (part.force @ volume_gradients(part.offset))
+
+
+def per_element(model) -> ElementChambers:
+    """Every element's slice (E, ...) (membership by ``structure.chamber_elements``)."""
+    s = model.structure
+    member = jnp.asarray(np.array(s.chamber_elements, float))          # (C, E)
+    pushed = model.chamber_pressure * model.chamber_area
+    return ElementChambers((member * pushed[:, None]).T,
+                           jnp.broadcast_to(model.chamber_offset,
+                                            (s.n_elements,) + model.chamber_offset.shape))
+
+
+def load_scale(model):
+    """Sum of squares (N^2) of pressure times area and of its moment at the chamber's
+    offset (divided by ``char_length``)."""
+    r = jnp.linalg.norm(model.chamber_offset, axis=-1)
+    f = model.chamber_pressure * model.chamber_area
+    return jnp.sum(f ** 2 * (1.0 + (r / model.char_length) ** 2))
+
+
+def at_time(model, t) -> dict:
+    """The pressures times their time laws at ``t`` (s)."""
+    return {"chamber_pressure": model.chamber_pressure * model.chamber_law.scales(t)}
+
+
+TERM = Term("chambers", lambda model: bool(model.structure.chamber_names), force,
+            per_element, load_scale, at_time=at_time)

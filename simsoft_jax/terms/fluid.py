@@ -30,6 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import element, lie
+from . import Term
 
 _POINTS, _WEIGHTS = np.polynomial.legendre.leggauss(3)
 _POINTS, _WEIGHTS = 0.5 * (_POINTS + 1.0), 0.5 * _WEIGHTS
@@ -69,8 +70,9 @@ def area(diameter):
     return 0.25 * jnp.pi * diameter ** 2
 
 
-def per_element(model, part: FluidPart) -> ElementFluid:
-    """Every element's slice (E, ...) of ``part``; buoyancy ``-rho_f A g buoyancy``."""
+def per_element(model) -> ElementFluid:
+    """Every element's slice (E, ...) of ``model.fluid``; buoyancy ``-rho_f A g buoyancy``."""
+    part = model.fluid
     n = model.length.shape[0]
     half = 0.5 * part.density * part.diameter
     lift = (-part.density * part.buoyancy * area(part.diameter))[:, None] * model.gravity
@@ -110,17 +112,22 @@ def force(el, fluid: ElementFluid, lam):
     return -lam * fluid.length * total
 
 
-def load_scale(model, part: FluidPart):
+def load_scale(model):
     """Sum of squares (N^2) of the elements' buoyancy plus normal drag in the current at
     rest, ``L (|b| + 1/2 rho_f C_n d |U|^2)``."""
-    fluid = per_element(model, part)
+    fluid = per_element(model)
     size = (jnp.linalg.norm(fluid.buoyancy, axis=1)
             + fluid.normal * jnp.sum(fluid.current ** 2, axis=1))
     return jnp.sum((model.length * size) ** 2)
 
 
-def added_inertia(model, part: FluidPart):
+def added_inertia(model):
     """Added mass ``rho_f C_a A`` (kg/m) on the normal translations: (E,6) diagonals."""
+    part = model.fluid
     m = part.density * part.added_mass * area(part.diameter)
     zero = jnp.zeros_like(m)
     return jnp.stack([zero, m, m, zero, zero, zero], axis=1)
+
+
+TERM = Term("fluid", lambda model: model.fluid is not None, force, per_element, load_scale,
+            added_inertia=added_inertia, velocity=True)

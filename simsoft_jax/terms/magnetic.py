@@ -23,6 +23,7 @@ import jax
 import jax.numpy as jnp
 
 from .. import lie
+from . import Term
 
 
 @dataclasses.dataclass(frozen=True)
@@ -70,19 +71,26 @@ def couple(R, moment, field):
     return jnp.cross(R @ moment, field)
 
 
-def per_element(model, part: MagneticPart) -> ElementMagnet:
-    """Every element's slice (E, ...) of ``part``."""
+def per_element(model) -> ElementMagnet:
+    """Every element's slice (E, ...) of ``model.magnetic``."""
+    part = model.magnetic
     n = model.length.shape[0]
     return ElementMagnet(part.moment, jnp.broadcast_to(part.field, (n, 3)), model.length)
 
 
-def load_scale(model, part: MagneticPart):
+def load_scale(model):
     """Sum of squares of the elements' full couples ``L |m| |B|`` divided by the model's
     ``char_length`` (N^2)."""
+    part = model.magnetic
     size = model.length * jnp.linalg.norm(part.moment, axis=1) * jnp.linalg.norm(part.field)
     return jnp.sum((size / model.char_length) ** 2)
 
 
-def at_time(part: MagneticPart, t) -> MagneticPart:
-    """``part`` with the field at time ``t`` (s): ``B scale(t)``."""
-    return dataclasses.replace(part, field=part.field * part.law.scales(t)[0])
+def at_time(model, t) -> dict:
+    """The magnetic part with the field at time ``t`` (s): ``B scale(t)``."""
+    part = model.magnetic
+    return {"magnetic": dataclasses.replace(part, field=part.field * part.law.scales(t)[0])}
+
+
+TERM = Term("magnetic", lambda model: model.magnetic is not None, force, per_element,
+            load_scale, at_time=at_time)

@@ -14,20 +14,30 @@ gradient of the potential, on the residual side, is
 Legendre with ``QUADRATURE`` = 3 points (exact for integrands of degree <= 5 in s, like
 the other distributed loads); tangent by ``jax.jacfwd`` on both tangent paths.
 """
+from typing import NamedTuple
+
 import jax
 import jax.numpy as jnp
 
 from .. import element, lie
 from ..actuator_tables import gauss_rule
 from ..inertia import centre_of_mass, line_density
+from . import Term
 
 QUADRATURE = 3
 
 
-def force(el, data, lam):
+class ElementWeight(NamedTuple):
+    """One element's slice: inertia (6,6) the section inertia (rhoA kg/m, centre of mass c
+    m), gravity (3,) m/s^2, length () m."""
+    inertia: jax.Array
+    gravity: jax.Array
+    length: jax.Array
+
+
+def force(el, data: ElementWeight, lam):
     """Nodal forces (12,) ``-lam int N^T [0; c x R(s)^T (rhoA g)] ds`` of one element
-    (residual side): ``data.inertia`` the section inertia (6,6) (rhoA kg/m, centre of mass
-    c m), ``data.gravity`` g (3,) m/s^2, ``data.length`` L m."""
+    (residual side)."""
     c = centre_of_mass(data.inertia)
     weight = line_density(data.inertia) * data.gravity          # N/m, world frame
     points, weights = gauss_rule(QUADRATURE)
@@ -40,3 +50,23 @@ def force(el, data, lam):
 
     return -lam * data.length * jnp.sum(jax.vmap(at)(jnp.asarray(points),
                                                     jnp.asarray(weights)), axis=0)
+
+
+def per_element(model) -> ElementWeight:
+    """Every element's slice (E, ...)."""
+    n = model.length.shape[0]
+    return ElementWeight(model.inertia, jnp.broadcast_to(model.gravity, (n, 3)), model.length)
+
+
+def load_scale(model):
+    """Sum of squares (N^2) of the weight's moments about the axis, ``L rhoA |c| |g|``
+    divided by ``char_length``."""
+    rho_a = jax.vmap(line_density)(model.inertia)
+    arm = jnp.linalg.norm(jax.vmap(centre_of_mass)(model.inertia), axis=1)
+    return jnp.sum((model.length * rho_a * arm / model.char_length) ** 2
+                   * jnp.sum(model.gravity ** 2))
+
+
+TERM = Term("offset_gravity",
+            lambda model: model.structure.has_gravity and model.structure.inertia_offset,
+            force, per_element, load_scale)

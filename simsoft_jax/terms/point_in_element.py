@@ -8,20 +8,49 @@ its nodal load is ``N^T w`` with ``w`` the load as a wrench in the section frame
 ``w`` as given for a follower (section-frame) load. This is the point-load limit of the
 distributed-load integral of S44.
 """
+from typing import NamedTuple
+
+import jax
 import jax.numpy as jnp
 
 from .. import element, lie
+from . import Term
 
 
-def force(el, data, lam, with_dead: bool, with_follower: bool):
-    """Nodal forces (12,) ``-lam N(xi, d)^T w`` of the element's point load (residual side):
-    ``data.point_dead`` (6,) world force and moment, ``data.point_follower`` (6,) section
-    force and moment, both at ``data.point_xi``."""
-    xi = data.point_xi
+class ElementPointLoad(NamedTuple):
+    """One element's slice: dead (6,) world force and moment, follower (6,) section force
+    and moment (each None when the scene has no such load), xi () where they act."""
+    dead: jax.Array
+    follower: jax.Array
+    xi: jax.Array
+
+
+def force(el, part: ElementPointLoad, lam):
+    """Nodal forces (12,) ``-lam N(xi, d)^T w`` of the element's point load (residual side)."""
+    xi = part.xi
     w = jnp.zeros(6, el.d.dtype)
-    if with_dead:
+    if part.dead is not None:
         R = el.RA @ lie.exp_so3(xi * el.d[3:])
-        w = w + jnp.concatenate([R.T @ data.point_dead[:3], R.T @ data.point_dead[3:]])
-    if with_follower:
-        w = w + data.point_follower
+        w = w + jnp.concatenate([R.T @ part.dead[:3], R.T @ part.dead[3:]])
+    if part.follower is not None:
+        w = w + part.follower
     return -lam * element.velocity_field_map(xi, el.d, el.P).T @ w
+
+
+def per_element(model) -> ElementPointLoad:
+    """Every element's slice (E, ...): the kinds of point load the structure has."""
+    s = model.structure
+    return ElementPointLoad(model.element_point_dead if s.has_point_dead else None,
+                            model.element_point_follower if s.has_point_follower else None,
+                            model.element_point_xi)
+
+
+def load_scale(model):
+    """Sum of squares (N^2) of the point forces and moments (divided by ``char_length``)."""
+    point = jnp.abs(model.element_point_dead) + jnp.abs(model.element_point_follower)
+    return jnp.sum(point[:, :3] ** 2) + jnp.sum((point[:, 3:] / model.char_length) ** 2)
+
+
+TERM = Term("point_loads",
+            lambda model: model.structure.has_point_dead or model.structure.has_point_follower,
+            force, per_element, load_scale)

@@ -1,73 +1,46 @@
-"""The term registry: each physical term declared once, read by every solver the same way.
+"""The term registry: the element terms declared once (:class:`~simsoft_jax.terms.Term`),
+read by every solver the same way.
 
-A registered term owns one part of the :class:`~simsoft_jax.model.Model` (the field named
-``Term.name``, ``None`` when the scene lacks the term, so the term's presence is the
-pytree itself and nothing of it is traced otherwise) and declares, in one
-:class:`Term`:
+Each term module declares its ``TERM``: when it is present, its per-instance force, the
+per-element data it reads, its share of the tolerance's load scale and, optionally, its
+time law and the section inertia it adds. The assembler (:mod:`simsoft_jax.assembly`)
+sums the present terms into the residual (:func:`forces`) and differentiates them with
+``jax.jacfwd`` in the 12 right perturbations of the two nodal frames (and, for terms that
+read them, the 12 nodal velocities) on both tangent paths, in statics and dynamics;
+:func:`simsoft_jax.statics.newton.load_scale`, :func:`simsoft_jax.loads.loads_at` and the
+dynamic section inertia read the other declarations. Adding a term = its module, one line
+in :data:`TERMS`, its scene keys and its model builder.
 
-- ``force(el, part_e, lam)``: its nodal forces (12,) on the residual side for one element
-  (:class:`~simsoft_jax.terms.Element`, the element's slice of the part), the loads scaled
-  by the load level ``lam`` (1 in dynamics);
-- ``per_element(model, part)``: that slice for all elements (a pytree of (E, ...) arrays);
-- ``load_scale(model, part)``: the sum of squares (N^2, moments divided by the model's
-  ``char_length``) of its full loads, its share of the tolerance's reference
-  (:func:`simsoft_jax.statics.newton.load_scale`);
-- ``at_time(part, t)`` (optional): the part at time ``t`` (its time law), as
-  :func:`simsoft_jax.loads.loads_at` gives the other loads;
-- ``added_inertia(model, part)`` (optional): section inertia (E,6) added to the model's
-  in dynamics (e.g. a fluid's added mass).
-
-Tangents need no declaration: the assembler (:mod:`simsoft_jax.assembly`,
-:mod:`simsoft_jax.dynamics.residual`) differentiates ``force`` with ``jax.jacfwd`` in the
-12 right perturbations of the two nodal frames and, in dynamics, the 12 nodal velocities,
-on both tangent paths. Adding a term = its module, one line in :data:`TERMS`, its scene
-keys and its model builder.
+The elastic, viscous, inertial and distributed-load terms, which have closed-form
+tangents, and contact (its own broad phase and friction state) are assembled by
+:mod:`simsoft_jax.assembly` directly.
 """
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
-
 import jax.numpy as jnp
 
-from . import fluid, magnetic
+from . import chambers, fluid, magnetic, offset_gravity, point_in_element, tendons
 
-
-class Term(NamedTuple):
-    """One registered term (see the module docstring)."""
-    name: str
-    force: Callable
-    per_element: Callable
-    load_scale: Callable
-    at_time: Callable | None = None
-    added_inertia: Callable | None = None
-
-
-TERMS = (
-    Term("magnetic", magnetic.force, magnetic.per_element, magnetic.load_scale,
-         at_time=magnetic.at_time),
-    Term("fluid", fluid.force, fluid.per_element, fluid.load_scale,
-         added_inertia=fluid.added_inertia),
-)
+TERMS = (point_in_element.TERM, offset_gravity.TERM, tendons.TERM, chambers.TERM,
+         magnetic.TERM, fluid.TERM)
 _BY_NAME = {term.name: term for term in TERMS}
 
 
 def active(model) -> tuple:
-    """The registered terms whose part ``model`` holds (static: decided by the pytree)."""
-    return tuple(term for term in TERMS if getattr(model, term.name, None) is not None)
+    """The registered terms ``model`` has (static)."""
+    return tuple(term for term in TERMS if term.present(model))
 
 
-def element_parts(model) -> dict | None:
-    """``{name: per-element slice}`` of the active terms (the ``parts`` of
-    :class:`~simsoft_jax.terms.ElementData`), None when there are none."""
-    terms = active(model)
-    if not terms:
-        return None
-    return {t.name: t.per_element(model, getattr(model, t.name)) for t in terms}
+def element_parts(model, velocity: bool | None = None) -> dict | None:
+    """``{name: per-element slice}`` of the active terms (all, or only those whose
+    ``velocity`` flag equals ``velocity``), None when there are none."""
+    terms = [t for t in active(model) if velocity is None or t.velocity == velocity]
+    return {t.name: t.per_element(model) for t in terms} or None
 
 
 def forces(el, parts: dict | None, lam):
-    """Sum (12,) of the forces of the active terms on one element (``parts``: that
-    element's slice of :func:`element_parts`), or None without any."""
+    """Sum (12,) of the forces of the terms in ``parts`` (one element's slices of
+    :func:`element_parts`) on one element, or None without any."""
     if not parts:
         return None
     total = jnp.zeros(12, el.d.dtype)
@@ -77,24 +50,27 @@ def forces(el, parts: dict | None, lam):
 
 
 def load_scale_squared(model):
-    """Sum of the active terms' :attr:`Term.load_scale` (N^2); 0.0 without any."""
-    return sum((t.load_scale(model, getattr(model, t.name)) for t in active(model)), 0.0)
+    """Sum of the active terms' load scales (N^2); 0.0 without any."""
+    return sum((t.load_scale(model) for t in active(model)), 0.0)
 
 
 def at_time(model, t) -> dict:
-    """``{name: part at time t}`` for the active terms with a time law."""
-    return {term.name: term.at_time(getattr(model, term.name), t)
-            for term in active(model) if term.at_time is not None}
+    """The Model fields the active terms' time laws change at time ``t`` (s)."""
+    changes = {}
+    for term in active(model):
+        if term.at_time is not None:
+            changes.update(term.at_time(model, t))
+    return changes
 
 
 def section_inertia(model):
     """``model.inertia`` (E,6) or (E,6,6) plus the inertia the active terms add
-    (:attr:`Term.added_inertia`, diagonals (E,6)); the model's own array when none do."""
+    (diagonals (E,6)); the model's own array when none do."""
     inertia = model.inertia
     for term in active(model):
         if term.added_inertia is None:
             continue
-        extra = term.added_inertia(model, getattr(model, term.name))
+        extra = term.added_inertia(model)
         inertia = (inertia + jnp.einsum("ei,ij->eij", extra, jnp.eye(6, dtype=extra.dtype))
                    if inertia.ndim == 3 else inertia + extra)
     return inertia

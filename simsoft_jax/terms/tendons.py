@@ -28,8 +28,14 @@ zero length, at every solution (to the solver's tolerance on the weld). A kink t
 (the tangents of the two parts differ) then pushes on the weld point with
 ``T (t_after - t_before)``, as a cable through a fixed eyelet does.
 """
+from typing import NamedTuple
+
 import jax
 import jax.numpy as jnp
+import numpy as np
+
+from ..actuator_tables import gauss_rule
+from . import Term
 
 
 def element_length(d, length, offset, slope, weights):
@@ -51,10 +57,48 @@ def total_length(d, length, offsets, slopes, tensions, weights):
     return jnp.dot(tensions, lengths)
 
 
-def force(el, data, lam, weights):
+class ElementTendons(NamedTuple):
+    """One element's slice: tension (M,) N (zero for tendons that do not pass it), offset,
+    slope (M,Q,2) the routing and its derivative, length () m, weights (Q,) Gauss weights."""
+    tension: jax.Array
+    offset: jax.Array
+    slope: jax.Array
+    length: jax.Array
+    weights: jax.Array
+
+
+def force(el, part: ElementTendons, lam):
     """Nodal forces (12,) ``lam P(d)^T grad_d sum_m T_m l_m(d)`` of the tendons passing
-    the element: ``data.tendon_tension`` (M,) (zero where a tendon does not pass),
-    ``data.tendon_offset``, ``data.tendon_slope`` (M,Q,2)."""
-    g = jax.grad(total_length)(el.d, data.length, data.tendon_offset, data.tendon_slope,
-                               data.tendon_tension, weights)
+    the element."""
+    g = jax.grad(total_length)(el.d, part.length, part.offset, part.slope, part.tension,
+                               part.weights)
     return lam * el.P.T @ g
+
+
+def per_element(model) -> ElementTendons:
+    """Every element's slice (E, ...): the tensions of the tendons passing it (by
+    ``structure.tendon_elements``), their routing, the element length and the Gauss
+    weights of ``structure.tendon_quadrature``."""
+    s = model.structure
+    member = jnp.asarray(np.array(s.tendon_elements, float))           # (M, E)
+    weights = gauss_rule(s.tendon_quadrature)[1]
+    return ElementTendons((member * model.tendon_tension[:, None]).T,
+                          jnp.swapaxes(model.tendon_offset, 0, 1),
+                          jnp.swapaxes(model.tendon_slope, 0, 1), model.length,
+                          jnp.broadcast_to(jnp.asarray(weights), (s.n_elements, len(weights))))
+
+
+def load_scale(model):
+    """Sum of squares (N^2) of the tensions and of the moments they make at their largest
+    offsets (divided by ``char_length``)."""
+    r = jnp.max(jnp.linalg.norm(model.tendon_offset, axis=-1), axis=(1, 2))
+    return jnp.sum(model.tendon_tension ** 2 * (1.0 + (r / model.char_length) ** 2))
+
+
+def at_time(model, t) -> dict:
+    """The tensions times their time laws at ``t`` (s)."""
+    return {"tendon_tension": model.tendon_tension * model.tendon_law.scales(t)}
+
+
+TERM = Term("tendons", lambda model: bool(model.structure.tendon_names), force, per_element,
+            load_scale, at_time=at_time)
