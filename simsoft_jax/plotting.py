@@ -117,6 +117,11 @@ def ribbon_vertices(positions, rotations, width, axis=1):
     return np.stack([minus[:-1], plus[:-1], plus[1:], minus[1:]], axis=1)
 
 
+def _ribbon_edges(quads):
+    """The two edge lines ``(N, 3)`` of a ribbon's quadrilaterals ``(N - 1, 4, 3)``."""
+    return [np.concatenate([quads[:, k], quads[-1:, 3 - k]]) for k in (0, 1)]
+
+
 def _draw_rod(ax, p, R, color, width, axis, triads, label):
     """One configuration: centreline, ribbon (with its two edge lines, gids
     ``ribbon_minus`` / ``ribbon_plus``) and optional triads."""
@@ -126,8 +131,7 @@ def _draw_rod(ax, p, R, color, width, axis, triads, label):
     quads = ribbon_vertices(p, R, width, axis)
     ax.add_collection3d(Poly3DCollection(quads, facecolor=color, alpha=0.35,
                                          edgecolor="none"))
-    for k, gid in ((0, "ribbon_minus"), (1, "ribbon_plus")):
-        edge = np.concatenate([quads[:, k], quads[-1:, 3 - k]])
+    for edge, gid in zip(_ribbon_edges(quads), ("ribbon_minus", "ribbon_plus")):
         ax.plot(*edge.T, color=color, lw=0.6, gid=gid)
     if triads:
         step = max(1, len(p) // 12)
@@ -240,41 +244,98 @@ def animate_rod(positions, path, rotations=None, *, time=None, fps=20, width=Non
     """Write an animation of a rod's motion and return its path.
 
     positions (T, N, 3) m, rotations (T, N, 3, 3) or None, time (T,) s (shown in the
-    title). ``path`` ending in ``.gif`` uses Pillow; ``.mp4`` uses ffmpeg and raises a
-    RuntimeError when ffmpeg is not installed. At most ``max_frames`` evenly spaced
-    frames are drawn; the axes are fixed (equal scaling) over the whole motion.
+    title). ``path`` ending in ``.gif`` is encoded by Pillow;
+    ``.mp4`` uses ffmpeg and raises a RuntimeError when ffmpeg is not installed. At most
+    ``max_frames`` evenly spaced frames are drawn, each once: the axes, fixed (equal
+    scaling) over the whole motion, are rendered a single time and every frame draws only
+    the rod, its tip and the title over them.
     """
     p, R = _frames(positions, rotations, stacked=True)
     if time is not None:
         time = _array("time", time, [(p.shape[0],)])
     path = Path(path)
-    if path.suffix == ".gif":
-        writer = animation.PillowWriter(fps=fps)
-    elif path.suffix == ".mp4":
-        if not animation.FFMpegWriter.isAvailable():
-            raise RuntimeError(f"path: {path.name} needs ffmpeg, which is not installed "
-                               "(write a .gif instead)")
-        writer = animation.FFMpegWriter(fps=fps)
-    else:
+    if path.suffix not in (".gif", ".mp4"):
         raise ValueError(f"path: unsupported suffix {path.suffix!r} (use .gif or .mp4)")
+    if path.suffix == ".mp4" and not animation.FFMpegWriter.isAvailable():
+        raise RuntimeError(f"path: {path.name} needs ffmpeg, which is not installed "
+                           "(write a .gif instead)")
     frames = np.unique(np.linspace(0, p.shape[0] - 1, min(max_frames, p.shape[0])).round()
                        .astype(int))
     width = _default_width(p) if width is None else width
     fig, ax = _axes3d(None, figsize=(5.5, 5.0))
+    set_equal_aspect(ax, p)
+    head = f"{title}  " if title else ""
+    rod = _MovingRod(ax, R is not None)
 
     def draw(i):
-        ax.cla()
-        _draw_rod(ax, p[i], None if R is None else R[i], "tab:blue", width, axis, False, None)
-        ax.scatter(*p[i, -1], color="tab:red", s=12)
-        set_equal_aspect(ax, p)
-        head = f"{title}  " if title else ""
+        rod.update(p[i], None if R is None else R[i], width, axis)
         ax.set_title(head + (f"t = {time[i]:.2f} s" if time is not None else f"frame {i}"))
 
-    anim = animation.FuncAnimation(fig, draw, frames=frames, interval=1000.0 / fps)
     path.parent.mkdir(parents=True, exist_ok=True)
-    anim.save(str(path), writer=writer)
-    plt.close(fig)
+    try:
+        if path.suffix == ".gif":
+            _write_gif(fig, rod.artists + [ax.title], draw, frames, path, fps)
+        else:
+            writer = animation.FFMpegWriter(fps=fps)
+            with writer.saving(fig, str(path), dpi=fig.dpi):
+                for i in frames:
+                    draw(i)
+                    writer.grab_frame()
+    finally:
+        plt.close(fig)
     return path
+
+
+class _MovingRod:
+    """The artists of one rod in an animation (centreline, ribbon and its edges, tip),
+    created once and moved by :meth:`update`."""
+
+    def __init__(self, ax, ribbon: bool):
+        self.line = ax.plot([], [], [], color="tab:blue", lw=2.0)[0]
+        self.tip = ax.plot([], [], [], "o", color="tab:red", ms=4)[0]
+        self.artists = [self.line, self.tip]
+        self.ribbon = None
+        if ribbon:
+            self.ribbon = Poly3DCollection(np.zeros((1, 4, 3)), facecolor="tab:blue",
+                                           alpha=0.35, edgecolor="none")
+            ax.add_collection3d(self.ribbon, autolim=False)
+            self.edges = [ax.plot([], [], [], color="tab:blue", lw=0.6)[0] for _ in (0, 1)]
+            self.artists += [self.ribbon, *self.edges]
+
+    def update(self, p, R, width, axis):
+        """Move to positions ``p`` (N, 3) m and rotations ``R`` (N, 3, 3) (or None)."""
+        self.line.set_data_3d(*p.T)
+        self.tip.set_data_3d(*p[-1:].T)
+        if self.ribbon is not None:
+            quads = ribbon_vertices(p, R, width, axis)
+            self.ribbon.set_verts(quads)
+            for line, edge in zip(self.edges, _ribbon_edges(quads)):
+                line.set_data_3d(*edge.T)
+
+
+def _write_gif(fig, artists, draw, frames, path, fps):
+    """Render the figure without ``artists`` once, then per frame ``draw(i)`` and paint
+    only ``artists`` over that background; encode the frames with Pillow (a palette per
+    frame, fast octree) at ``fps`` frames per second."""
+    from PIL import Image
+    canvas = fig.canvas
+    for artist in artists:
+        artist.set_animated(True)       # left out of the full draw below
+    draw(frames[0])
+    canvas.draw()
+    background = canvas.copy_from_bbox(fig.bbox)
+    images = []
+    for i in frames:
+        draw(i)
+        canvas.restore_region(background)
+        for artist in artists:
+            if hasattr(artist, "do_3d_projection"):
+                artist.do_3d_projection()
+            fig.draw_artist(artist)
+        images.append(Image.fromarray(np.asarray(canvas.buffer_rgba())[..., :3].copy())
+                      .quantize(method=Image.Quantize.FASTOCTREE))
+    images[0].save(path, save_all=True, append_images=images[1:],
+                   duration=round(1000.0 / fps), loop=0)
 
 
 # ------------------------------------------------------------------------- error figures
