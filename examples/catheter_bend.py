@@ -1,4 +1,4 @@
-"""A catheter pushed through a curved vessel (issue 14: a curved tube obstacle, a GIF).
+"""A catheter pushed through a curved vessel (a curved tube obstacle, a GIF).
 
     python examples/catheter_bend.py [--out out/catheter_bend] [--fast]
 

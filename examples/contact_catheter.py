@@ -1,4 +1,4 @@
-"""A catheter pushed through a guide tube against a spherical obstacle (issue 14, contact).
+"""A catheter pushed through a guide tube against a spherical obstacle (contact).
 
     python examples/contact_catheter.py [--out out/contact_catheter] [--fast]
 

@@ -1,5 +1,5 @@
 """A planar parallel continuum robot: two nylon rods clamped to the floor, welded at the
-top to a rigid plate (issue 13: bodies and joints, statics and dynamics).
+top to a rigid plate (bodies and joints, statics and dynamics).
 
     python examples/parallel_robot.py [--out out/parallel_robot] [--fast]
 

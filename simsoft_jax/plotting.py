@@ -15,10 +15,10 @@ centreline and spanned by the local axis ``axis`` of each frame (edges ``p -/+ (
 so bending about that axis keeps the ribbon flat and twist shows as the strip winding; small
 frame triads (x red, y green, z blue) are optional. ``*_result`` helpers take a
 :class:`simsoft_jax.Result` and a rod name and draw the helical interpolation between nodes
-(seed eq. 27, :func:`simsoft_jax.kinematics.sample_shape`).
+(the paper's eq. 27, :func:`simsoft_jax.kinematics.sample_shape`).
 
-Also: tip trajectories (components vs time, seed Figs. 6-8 and 11), error bars grouped by
-load angle (the style of the seed's Figs. 16-18) and work-precision plots (error vs wall
+Also: tip trajectories (components vs time, the paper's Figs. 6-8 and 11), error bars grouped by
+load angle (the style of the paper's Figs. 16-18) and work-precision plots (error vs wall
 time, log-log).
 """
 from __future__ import annotations
@@ -145,7 +145,7 @@ def _draw_rod(ax, p, R, color, width, axis, triads, label):
 
 def plot_rod(positions, rotations=None, *, ax=None, width=None, axis=1, triads=False,
              color="tab:blue", label=None, title=None):
-    """One rod configuration in 3-D with equal axis scaling (seed Figs. 5, 9, 20, 22).
+    """One rod configuration in 3-D with equal axis scaling (the paper's Figs. 5, 9, 20, 22).
 
     positions (N, 3) m; rotations (N, 3, 3) or None (centreline only). ``width`` (m) of the
     ribbon spanned by local axis ``axis`` (default 6 % of the rod's extent); ``triads``
@@ -167,7 +167,7 @@ def plot_configurations(positions, rotations=None, *, labels=None, cmap="viridis
                         ax=None, width=None, axis=1, title=None, colorbar_label=None,
                         values=None, references=None):
     """Several configurations overlaid, coloured along a colormap (load steps or time
-    snapshots; seed Figs. 9, 20, 22).
+    snapshots; the paper's Figs. 9, 20, 22).
 
     positions (K, N, 3) m; rotations (K, N, 3, 3) or None. ``labels`` (K strings) make a
     legend; ``values`` (K,) (e.g. times in s or loads) make a colorbar titled
@@ -210,10 +210,10 @@ def plot_configurations(positions, rotations=None, *, labels=None, cmap="viridis
 
 def plot_tip_trajectory(time, tip, *, reference=None, components=("x", "y", "z"),
                         ax=None, title=None, ylabel="tip position [m]"):
-    """Tip position components vs time (seed Figs. 6-8, 11).
+    """Tip position components vs time (the paper's Figs. 6-8, 11).
 
     time (T,) s; tip (T, 3) m; ``reference`` (T, 3) drawn as solid lines with the simulation
-    dotted (the seed's Fig. 11 style). Returns the Figure.
+    dotted (the paper's Fig. 11 style). Returns the Figure.
     """
     t = _array("time", time, [(None,)])
     tip = _array("tip", tip, [(len(t), 3)])
@@ -351,7 +351,7 @@ def _ragged(name, value, groups):
 def plot_error_bars(groups, mean, std, *, case_labels=None, ax=None, title=None,
                     xlabel="loading angle [deg]", ylabel="error [%]"):
     """Grouped bars of a mean error per load case with its standard deviation as error bar,
-    one group per loading angle (the style of the seed's Figs. 16-18, Princeton beam).
+    one group per loading angle (the style of the paper's Figs. 16-18, Princeton beam).
 
     groups (G,) labels (e.g. angles in degrees); mean, std: G rows, row g holding one value
     per load case of group g (rows may differ in length, e.g. 4 loads at 30 deg and 3 at
@@ -428,7 +428,7 @@ def _samplers(samples_per_element: int):
 
 
 def sample_result(result, rod, samples_per_element=6):
-    """Helical interpolation (seed eq. 27) of ``rod`` in a :class:`simsoft_jax.Result`:
+    """Helical interpolation (the paper's eq. 27) of ``rod`` in a :class:`simsoft_jax.Result`:
     ``(positions, rotations)`` of shapes (M, 3), (M, 3, 3) for a static result or
     (T, M, 3), (T, M, 3, 3) for a dynamic one, ``M = elements * samples_per_element + 1``."""
     R, p = result.rotations(rod), result.positions(rod)
@@ -460,7 +460,7 @@ def plot_result_snapshots(result, rod, count=6, *, samples_per_element=6, **kwar
 
 def plot_result_tip(result, rod, *, displacement=True, **kwargs):
     """:func:`plot_tip_trajectory` of the last node of ``rod`` in a dynamic Result:
-    its displacement from the start (m, the seed's Figs. 6-8) or, with
+    its displacement from the start (m, the paper's Figs. 6-8) or, with
     ``displacement=False``, its position."""
     p = result.positions(rod)
     if p.ndim != 3:
