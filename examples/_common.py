@@ -23,7 +23,8 @@ SCENES = HERE / "scenes"
 
 def parse_args(name: str, doc: str, extra=None):
     """``--out`` (Path, created) and ``--fast`` (bool) of example ``name``; ``extra(parser)``
-    may add the example's own options."""
+    may add the example's own options. Says what the example does and that its first
+    solves compile (so that a long first wait is not a silent one)."""
     parser = argparse.ArgumentParser(description=doc.strip().splitlines()[0])
     parser.add_argument("--out", default=f"out/{name}", help="output folder (default %(default)s)")
     parser.add_argument("--fast", action="store_true", help="small mesh / short run (tests)")
@@ -32,6 +33,8 @@ def parse_args(name: str, doc: str, extra=None):
     args = parser.parse_args()
     args.out = Path(args.out)
     args.out.mkdir(parents=True, exist_ok=True)
+    print(f"{name}: {parser.description}\n  writing to {args.out}; the first solve of each "
+          "model structure compiles its program first (tens of seconds)", flush=True)
     return args
 
 

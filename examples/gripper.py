@@ -96,19 +96,19 @@ def main():
     n = model.structure.rod("upper").nodes
     fig, ax = plt.subplots(figsize=(6, 3.5), layout="constrained")
     ax.add_patch(plt.Circle((X_SPHERE * 1e3, 0.0), R_SPHERE * 1e3, color="tab:red",
-                            alpha=0.3, label=f"sphere, radius {R_SPHERE * 1e3:g} mm"))
+                            alpha=0.3, label=f"sphere (r = {R_SPHERE * 1e3:g} mm)"))
     for p, t, color in ((states[0], tensions[0], "tab:gray"),
                         (states[-1], tensions[-1], "tab:blue")):
         for k, rod in enumerate((slice(0, n), slice(n, 2 * n))):
             band = 1e3 * finger_outline(p[rod, :2], R_FINGER)
             ax.fill(band[:, 0], band[:, 1], color=color, alpha=0.35, lw=0,
-                    label=None if k else f"fingers at T = {t:g} N (radius {R_FINGER * 1e3:g} mm)")
+                    label=None if k else f"fingers (r = {R_FINGER * 1e3:g} mm), T = {t:g} N")
             ax.plot(p[rod, 0] * 1e3, p[rod, 1] * 1e3, "-", color=color, lw=0.8)
     ax.set_aspect("equal")
     ax.set_xlabel("x [mm]")
     ax.set_ylabel("y [mm]")
     ax.set_title("two tendon-driven fingers squeezing a sphere (top view)")
-    ax.legend(fontsize="small", loc="upper left")
+    fig.legend(loc="outside lower center", ncols=3, fontsize="small")
     save(fig, args.out, "grasp.png")
     fig, ax = plt.subplots(figsize=(5, 3.5))
     fine = np.linspace(0.0, tensions[-1], 100)

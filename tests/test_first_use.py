@@ -126,3 +126,37 @@ def test_every_notebook_cell_has_an_id(notebook):
     ids = [cell.get("id") for cell in nb["cells"]]
     assert all(isinstance(i, str) and re.fullmatch(r"[a-zA-Z0-9-_]{1,64}", i) for i in ids)
     assert len(set(ids)) == len(ids)
+
+
+def first_steps_blocks(language: str) -> list[str]:
+    """The ``language`` code blocks of the README's "First steps" section."""
+    readme = (REPO_ROOT / "README.md").read_text(encoding="utf-8")
+    section = readme.split("## First steps", 1)[1].split("\n## ", 1)[0]
+    return re.findall(rf"```{language}\n(.*?)```", section, re.S)
+
+
+@pytest.mark.slow
+def test_readme_first_steps_run(tmp_path):
+    """The README's first steps as a new user types them: the commands (with the output
+    folder moved to a temporary one) exit 0 and write their files; the Python blocks run
+    in one process and give a converged static tip below the clamp, a dynamic trajectory
+    of 301 states, and a gradient of the shape of the stiffness array that is finite."""
+    commands = [line for block in first_steps_blocks("bash") for line in block.splitlines()
+                if line.startswith("simsoft-jax")]
+    assert len(commands) == 3
+    for line in commands:
+        args = line.split("#")[0].replace("out/", f"{tmp_path}/").split()[1:]
+        proc = subprocess.run([sys.executable, "-m", "simsoft_jax.cli", *args],
+                              capture_output=True, text=True, cwd=REPO_ROOT, timeout=900)
+        assert proc.returncode == 0, (line, proc.stderr)
+    for name in ("cantilever.json", "cantilever.png", "helical.npz", "helical.gif"):
+        assert (tmp_path / name).stat().st_size > 1000, name
+    code = "\n".join(first_steps_blocks("python")) + (
+        "\nimport numpy as np\n"
+        "assert result.converged and result.positions('beam')[-1, 2] < 0\n"
+        "assert traj.converged and traj.time.shape == (301,)\n"
+        "assert dz_dK.shape == model.stiffness.shape and np.isfinite(dz_dK).all()\n"
+        "print('FIRST STEPS OK')\n")
+    proc = python(code, timeout=900)
+    assert proc.returncode == 0, proc.stderr
+    assert "FIRST STEPS OK" in proc.stdout
