@@ -76,7 +76,7 @@ def main():
     t_end = 0.5 if args.fast else 1.0
     settings = sj.DynamicSettings(dt=0.01, steps=int(round(t_end / 0.01)), rho_inf=0.9,
                                   tolerance=1e-12)
-    fig_d, axes = plt.subplots(1, 2, figsize=(10.0, 4.0), sharey=True)
+    fig_d, axes = plt.subplots(1, 2, figsize=(10.0, 4.4), sharey=True, layout="constrained")
     fig_e, ax_e = plt.subplots(figsize=(6.5, 4.0))
     fig_s, ax_s = plt.subplots(figsize=(5.0, 5.0))
     colors = ("tab:blue", "tab:orange", "tab:green")
@@ -113,7 +113,7 @@ def main():
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("displacement from mid-span [m]")
     axes[0].plot([], [], ":", color="k", label="simulation")
-    axes[0].legend(fontsize="x-small")
+    fig_d.legend(loc="outside lower center", ncols=4, fontsize="small")
     fig_d.suptitle(f"Free planar rotation, {elements} elements (the paper's Fig. 11)")
     save(fig_d, args.out, "node_B_displacements.png")
     ax_e.set_xlabel("time [s]")

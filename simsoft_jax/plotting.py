@@ -198,7 +198,7 @@ def plot_configurations(positions, rotations=None, *, labels=None, cmap="viridis
     set_equal_aspect(ax, p if references is None else np.concatenate(
         [p.reshape(-1, 3), references.reshape(-1, 3)]))
     if labels is not None:
-        ax.legend(fontsize="small")
+        ax.legend(fontsize="small", loc="upper left")
     elif values is not None:
         mappable = plt.cm.ScalarMappable(
             cmap=colormap, norm=plt.Normalize(values.min(), values.max()))
