@@ -113,7 +113,8 @@ def main():
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("displacement from mid-span [m]")
     axes[0].plot([], [], ":", color="k", label="simulation")
-    fig_d.legend(loc="outside lower center", ncols=4, fontsize="small")
+    fig_d.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=4,
+                 fontsize="small")
     fig_d.suptitle(f"Free planar rotation, {elements} elements (the paper's Fig. 11)")
     save(fig_d, args.out, "node_B_displacements.png")
     ax_e.set_xlabel("time [s]")

@@ -109,7 +109,7 @@ def main():
         title="Magellan catheter: guide 90 mm + leader 30 mm (the paper's Fig. 20)")
     ax = fig.axes[0]
     ax.scatter(*p[idx][:, junction].T, color="k", s=12, label="guide end (2)")
-    ax.legend(fontsize="small")
+    ax.legend(fontsize="small", loc="upper left")
     save(fig, args.out, "snapshots.png")
     save(plotting.plot_result_tip(result, "catheter", title="catheter tip (point 3)"),
          args.out, "tip_displacements.png")
