@@ -1,4 +1,4 @@
-"""Figures of the Princeton replay in the layout of the seed's Figs. 15-18 (matplotlib).
+"""Figures of the Princeton replay in the layout of the paper's Figs. 15-18 (matplotlib).
 
 * Fig. 15: deflections y (flapwise) and z (edgewise) along the beam, one panel per angle,
   simulated lines and measured markers;
