@@ -357,7 +357,8 @@ def main(argv=None) -> int:
     p_run.add_argument("--plot", help="figure of the solution (.png, .pdf, .svg)")
     p_run.add_argument("--animate", help="animation of a dynamic run (.gif, or .mp4 with ffmpeg)")
     p_run.set_defaults(func=_run)
-    p_val = sub.add_parser("validate", help="check a scene file without solving it")
+    p_val = sub.add_parser("validate", help="check a scene file without solving it",
+                           parents=[_cache_flags()])   # accepted everywhere; no solve here
     p_val.add_argument("scene", help="scene file (.toml or .json)")
     p_val.set_defaults(func=_validate)
     p_pr = sub.add_parser("princeton", help="replay the 25 Princeton load cases (table + figures)",

@@ -105,7 +105,7 @@ def test_help_texts_are_plain_and_complete():
     assert cli_help("bench").startswith("usage: simsoft-jax bench")
     princeton = cli_help("princeton")
     assert re.search(r"--elements ELEMENTS\s+finite elements", princeton)
-    for command in ("run", "princeton", "calibrate", "predict"):   # after the command too
+    for command in ("run", "validate", "princeton", "calibrate", "predict"):   # after it too
         assert "--no-cache" in cli_help(command)
         assert "--no-cache" in cli_help(command, "--no-cache")
 
