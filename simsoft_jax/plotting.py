@@ -30,6 +30,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib import animation, colormaps
+from matplotlib.ticker import MaxNLocator, NullFormatter, ScalarFormatter
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 TRIAD_COLORS = ("tab:red", "tab:green", "tab:blue")
@@ -399,12 +400,20 @@ def plot_work_precision(series, *, ax=None, title=None, xlabel="wall time [s]",
     if ax is None:
         fig, ax = plt.subplots(figsize=(6.0, 4.5))
     fig = ax.figure
+    spans = []
     for name, (times, errors) in series.items():
         t = _array(f"series[{name!r}] wall times", times, [(None,)])
         e = _array(f"series[{name!r}] errors", errors, [(len(t),)])
         if np.any(t <= 0) or np.any(e <= 0):
             raise ValueError(f"series[{name!r}]: wall times and errors must be > 0 (log axes)")
         ax.loglog(t, e, "o-", label=str(name))
+        spans.append((t, e))
+    for k, axis in enumerate((ax.xaxis, ax.yaxis)):
+        values = np.concatenate([span[k] for span in spans])
+        if values.max() < 10.0 * values.min():   # under a decade: four plain ticks, not a
+            axis.set_major_locator(MaxNLocator(4))   # crowd of labelled minor ones
+            axis.set_major_formatter(ScalarFormatter())
+            axis.set_minor_formatter(NullFormatter())
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.grid(which="both", alpha=0.3)
