@@ -380,8 +380,8 @@ def main(argv=None) -> int:
     if argv[:1] == ["bench"]:          # its options belong to benchmarks/run_all.py
         return _bench(argv[1:])
     args = parser.parse_args(argv)
-    if args.func is not _validate:   # validate reads the scene only: no JAX import
-        _configure_cache(args)
+    if args.func is not _validate or getattr(args, "no_cache", False):
+        _configure_cache(args)   # plain validate reads the scene only: no JAX import
     return args.func(args)
 
 
