@@ -73,10 +73,11 @@ def advise(results: dict) -> list[str]:
     return lines
 
 
-def main(argv=None) -> int:
-    """Run the selected benchmarks (``argv`` as for the command line, default sys.argv);
-    returns 0. An unknown ``--only`` name exits through argparse (status 2)."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def main(argv=None, prog=None) -> int:
+    """Run the selected benchmarks (``argv`` as for the command line, default sys.argv;
+    ``prog``: the command's name in the usage line); returns 0. An unknown ``--only`` name
+    exits through argparse (status 2)."""
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n\n")[0])
     parser.add_argument("--only", default="",
                         help=f"comma-separated subset of {','.join(BENCHMARKS)}")
     parser.add_argument("--quick", action="store_true", help="fewer sizes and repeats")

@@ -23,7 +23,8 @@ SCENES = HERE / "scenes"
 
 def parse_args(name: str, doc: str, extra=None):
     """``--out`` (Path, created) and ``--fast`` (bool) of example ``name``; ``extra(parser)``
-    may add the example's own options."""
+    may add the example's own options. Says what the example does and that its first
+    solves compile (so that a long first wait is not a silent one)."""
     parser = argparse.ArgumentParser(description=doc.strip().splitlines()[0])
     parser.add_argument("--out", default=f"out/{name}", help="output folder (default %(default)s)")
     parser.add_argument("--fast", action="store_true", help="small mesh / short run (tests)")
@@ -32,6 +33,8 @@ def parse_args(name: str, doc: str, extra=None):
     args = parser.parse_args()
     args.out = Path(args.out)
     args.out.mkdir(parents=True, exist_ok=True)
+    print(f"{name}: {parser.description}\n  writing to {args.out}; the first solve of each "
+          "model structure compiles its program first (tens of seconds)", flush=True)
     return args
 
 
@@ -71,7 +74,7 @@ def profile_value(profile: dict, t):
 
 
 def element_twists(result, rod: str):
-    """Relative twists ``d_e = log(H_e^-1 H_e+1)`` (seed eq. 28) of every element of
+    """Relative twists ``d_e = log(H_e^-1 H_e+1)`` (the paper's eq. 28) of every element of
     ``rod`` at every saved time of a dynamic Result, (T, E, 6)."""
     import jax
 
@@ -82,7 +85,7 @@ def element_twists(result, rod: str):
 
 
 def straight_element_mass(length: float, inertia) -> np.ndarray:
-    """Frozen consistent mass (12, 12) of a straight element (spec section 3.5, I2):
+    """Frozen consistent mass (12, 12) of a straight element:
     ``M_AA = L/3 M - L/24 (A^T M + M A) + L/120 A^T M A``, ``M_AB = L/6 M + L/24 (M A -
     A^T M) - L/120 A^T M A``, ``M_BB = L/3 M + L/24 (A^T M + M A) + L/120 A^T M A`` with
     ``M = diag(inertia)`` (or ``inertia`` itself, a (6,6) section inertia) and
@@ -105,7 +108,7 @@ def work_energy_balance(result, scene: dict, rod: str, twists=None):
     velocities ``R_i v_lin`` and ``R_i omega`` from the saved body velocities; the work is
     its trapezoid integral. Energy, computed here from the saved states: kinetic
     ``1/2 v_e^T M_e v_e`` with the consistent element masses (:func:`straight_element_mass`)
-    plus strain ``sum (L/2) eps^T K eps``, ``eps = (d - d0)/L`` (seed eqs. 29, 48).
+    plus strain ``sum (L/2) eps^T K eps``, ``eps = (d - d0)/L`` (the paper's eqs. 29, 48).
     Without damping and with exact time integration the two are equal; generalized-alpha
     with rho_inf < 1 dissipates a little of the fast modes. ``twists``: the (T, E, 6)
     element twists if already computed (:func:`element_twists`).
@@ -139,7 +142,7 @@ def work_energy_balance(result, scene: dict, rod: str, twists=None):
 
 def helical_example(name: str, scene_name: str, doc: str, snapshot: bool = False,
                     animation: bool = False, fast_elements: int = 4) -> int:
-    """Run one of the seed's helical-motion scenes (Figs. 5-8) and write its figures.
+    """Run one of the paper's helical-motion scenes (Figs. 5-8) and write its figures.
 
     Always: tip_displacements.png (tip x, y, z vs time), snapshots.png (the rod at 7
     instants, coloured by time), summary.json. ``snapshot``: snapshot_t3.png (the final
@@ -157,7 +160,7 @@ def helical_example(name: str, scene_name: str, doc: str, snapshot: bool = False
     rod = scene["rods"][0]["name"]
     length = float(np.sum(np.asarray(result.model.length)))
     tip = result.positions(rod)[:, -1]
-    # arc length of each helical element = |d_U| of its relative twist (seed eq. 27)
+    # arc length of each helical element = |d_U| of its relative twist (the paper's eq. 27)
     twists = element_twists(result, rod)
     arc = np.linalg.norm(twists[:, :, :3], axis=2).sum(axis=1)
     stretch = float(np.abs(arc / length - 1.0).max())

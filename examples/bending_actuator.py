@@ -1,12 +1,12 @@
-"""Silicone bending actuator for rehabilitation under a growing torque (seed Figs. 21-22).
+"""Silicone bending actuator for rehabilitation under a growing torque (the paper's Figs. 21-22).
 
     python examples/bending_actuator.py [--out out/bending_actuator] [--fast]
 
 Scene: examples/scenes/bending_actuator.json. Cantilever, L = 0.15 m, solid semicircle
 section r = 1 cm, silicone (rho 1080 kg/m^3, E 110 kPa, nu 0.5, G = E/3); tip torque
-tau(t) = 0.002 t N m "about y" for 0 <= t <= 1 s (seed).
+tau(t) = 0.002 t N m "about y" for 0 <= t <= 1 s (the paper).
 
-Choices (spec 7.3):
+Choices:
 * **Bending axis: local y = the centroidal axis parallel to the flat side** (the
   section's diameter lies along local y, its flat side faces -z). This is the compliant
   axis, I_y = (pi/8 - 8/(9 pi)) r^4 = 1.098e-9 m^4, EI_y = 1.207e-4 N m^2: the quasi-static
@@ -73,7 +73,7 @@ def main():
     ax.set_ylabel("z [m]")
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small")
-    ax.set_title("Silicone bending actuator, tau = 0.002 t N m about y (seed Fig. 22)")
+    ax.set_title("Silicone bending actuator, tau = 0.002 t N m about y (the paper's Fig. 22)")
     save(fig, args.out, "snapshots.png")
     save(plotting.plot_configurations(ps[idx], Rs[idx],
                                       labels=[f"t = {time[i]:.2f} s" for i in idx],

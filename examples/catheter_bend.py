@@ -1,4 +1,4 @@
-"""A catheter pushed through a curved vessel (issue 14: a curved tube obstacle, a GIF).
+"""A catheter pushed through a curved vessel (a curved tube obstacle, a GIF).
 
     python examples/catheter_bend.py [--out out/catheter_bend] [--fast]
 
@@ -107,12 +107,13 @@ def main():
     p = result.positions("catheter")
     radius = float(result.model.contact_radius[0])
     print(f"catheter pushed {PUSH * 1e3:g} mm through a {np.degrees(ANGLE):g} degree bend: "
-          f"{result.message} ({result.wall_time_s:.1f} s, {result.compile_time_s:.1f} s "
-          "compiling)")
+          + ("converged" if result.converged else result.message)
+          + f", {result.newton_iterations} Newton iterations ({result.wall_time_s:.1f} s, "
+          f"{result.compile_time_s:.1f} s compiling)")
     for i in np.abs(time[:, None] - [0.5, 1.0, 1.5, 2.0]).argmin(axis=0):
         print(f"t = {time[i]:.2f} s: tip at {np.round(p[i, -1] * 1e3, 2)} mm; vessel normal "
               f"force {float(vessel['normal_force'][i]):.4f} N; largest penetration "
-              f"{float(vessel['max_penetration'][i]) / radius:.1e} r")
+              f"{float(vessel['max_penetration'][i]) / radius:.1e} of the rod's radius")
 
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(5, 5))

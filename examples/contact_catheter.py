@@ -1,4 +1,4 @@
-"""A catheter pushed through a guide tube against a spherical obstacle (issue 14, contact).
+"""A catheter pushed through a guide tube against a spherical obstacle (contact).
 
     python examples/contact_catheter.py [--out out/contact_catheter] [--fast]
 
@@ -62,7 +62,7 @@ def main():
                            for name, c in contacts.items())
         pen = max(float(c["max_penetration"][i]) for c in contacts.values())
         print(f"t = {time[i]:.2f} s: tip at {np.round(p[i, -1] * 1e3, 2)} mm; normal "
-              f"forces: {forces}; largest penetration {pen / radius:.1e} r")
+              f"forces: {forces}; largest penetration {pen / radius:.1e} of the rod's radius")
 
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(7, 3.5))

@@ -1,4 +1,4 @@
-"""Dynamic identification: viscosity and bending stiffness from a tip trajectory (issue 5.4).
+"""Dynamic identification: viscosity and bending stiffness from a tip trajectory.
 
     python examples/dynamic_identification.py [--out DIR] [--fast]
 

@@ -1,23 +1,23 @@
-"""Free planar rotation of a straight arm (seed Figs. 10-12, eqs. 92-108).
+"""Free planar rotation of a straight arm (the paper's Figs. 10-12, eqs. 92-108).
 
     python examples/free_planar_rotation.py [--out out/free_planar_rotation] [--fast]
 
 A free-free arm (L = 1 m) spins about the world y axis at omega0 = pi, 2 pi, 3 pi rad/s in
-the x-z plane, with no loads, for 1 s. The exact motion (spec S76-S80) is a steady
+the x-z plane, with no loads, for 1 s. The exact motion is a steady
 rotation about the fixed mid-span point p_c with the arm stretched by the centrifugal
 force: node B (s = L) moves on ``p_c + xi(L) (cos w t, 0, -sin w t)`` with
 ``xi(L) = tan(c0 w L/2) / (c0 w)``, ``c0 = sqrt(rho/E)``.
 
-Choices (the seed's data are rho = 2.7e-3 kg/m^3, E = 6.9e7 Pa, section not given;
-spec section 9 item 13): real aluminium rho = 2.7e3 kg/m^3, E = 6.9e10 Pa (nu 0.33),
-which has the seed's c0 = 6.26e-6 s/m and so the same motion; a solid circle d = 20 mm
+Choices (the paper's data are rho = 2.7e-3 kg/m^3, E = 6.9e7 Pa, section not given):
+real aluminium rho = 2.7e3 kg/m^3, E = 6.9e10 Pa (nu 0.33),
+which has the paper's c0 = 6.26e-6 s/m and so the same motion; a solid circle d = 20 mm
 (the exact solution does not depend on the section); 10 helical elements (4 with --fast),
 consistent inertia, dt = 0.01 s, rho_inf = 0.9 (0.5 s with --fast). The run starts from
-the exact stretched state (S80: positions, and the rigid spin about p_c as the initial
+the exact stretched state (positions, and the rigid spin about p_c as the initial
 velocity), as in tests/test_dynamics_physics.py.
 
-Error (Fig. 12): the seed's eq. (108) divides by x_e(t), z_e(t), which cross zero; we plot
-``e(t) = |p_B(t) - p_B,exact(t)| / L * 100 %`` instead (spec section 9). The seed reports
+Error (Fig. 12): the paper's eq. (108) divides by x_e(t), z_e(t), which cross zero; we plot
+``e(t) = |p_B(t) - p_B,exact(t)| / L * 100 %`` instead. The paper reports
 errors < 0.1 %; the largest error here is printed and saved (summary.json).
 
 Writes node_B_displacements.png (Fig. 11), errors.png (Fig. 12), snapshots.png, summary.json.
@@ -35,7 +35,7 @@ OMEGAS = (np.pi, 2 * np.pi, 3 * np.pi)
 
 
 def node_positions(omega, s):
-    """Exact stretched steady state at t = 0 (S79): node positions (N, 3), and xi(s) (N,)
+    """Exact stretched steady state at t = 0: node positions (N, 3), and xi(s) (N,)
     (signed distance from the mid-span point p_c = (L/2, 0, 0))."""
     c0 = np.sqrt(ALUMINIUM["density"] / ALUMINIUM["E"])
     x = c0 * omega
@@ -59,7 +59,7 @@ def free_arm(elements, settings):
 
 
 def rollout(model, omega, settings):
-    """The FE rollout from the exact stretched state (S80): nodes at p_c + xi(s_i) e_x with
+    """The FE rollout from the exact stretched state: nodes at p_c + xi(s_i) e_x with
     identity frames, body velocities ``(0, 0, -w xi(s_i), 0, w, 0)``. Returns time (T,),
     positions (T, N, 3), the converged flag and xi(s_i) (N,)."""
     s = np.linspace(0.0, L, model.p0.shape[0])
@@ -76,7 +76,7 @@ def main():
     t_end = 0.5 if args.fast else 1.0
     settings = sj.DynamicSettings(dt=0.01, steps=int(round(t_end / 0.01)), rho_inf=0.9,
                                   tolerance=1e-12)
-    fig_d, axes = plt.subplots(1, 2, figsize=(10.0, 4.0), sharey=True)
+    fig_d, axes = plt.subplots(1, 2, figsize=(10.0, 4.4), sharey=True, layout="constrained")
     fig_e, ax_e = plt.subplots(figsize=(6.5, 4.0))
     fig_s, ax_s = plt.subplots(figsize=(5.0, 5.0))
     colors = ("tab:blue", "tab:orange", "tab:green")
@@ -113,14 +113,15 @@ def main():
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("displacement from mid-span [m]")
     axes[0].plot([], [], ":", color="k", label="simulation")
-    axes[0].legend(fontsize="x-small")
-    fig_d.suptitle(f"Free planar rotation, {elements} elements (seed Fig. 11)")
+    fig_d.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=4,
+                 fontsize="small")
+    fig_d.suptitle(f"Free planar rotation, {elements} elements (the paper's Fig. 11)")
     save(fig_d, args.out, "node_B_displacements.png")
     ax_e.set_xlabel("time [s]")
     ax_e.set_ylabel("|p_B - p_B,exact| / L [%]")
     ax_e.grid(which="both", alpha=0.3)
     ax_e.legend(fontsize="small")
-    ax_e.set_title("Errors of the free rotating arm (seed Fig. 12)")
+    ax_e.set_title("Errors of the free rotating arm (the paper's Fig. 12)")
     save(fig_e, args.out, "errors.png")
     ax_s.set_aspect("equal")
     ax_s.set_xlabel("x [m]")
@@ -131,7 +132,7 @@ def main():
     summary["converged"] = converged
     summary["max_error_percent"] = max(c["max_error_percent"] for c in summary["cases"])
     print(f"largest error over all cases: {summary['max_error_percent']:.2e} % "
-          "(seed: < 0.1 %)")
+          "(the paper: < 0.1 %)")
     write_summary(args.out, summary)
     return 0 if converged else 1
 

@@ -1,4 +1,4 @@
-"""A 2-finger tendon-driven gripper closing on a sphere (issue 14: tendons and contact).
+"""A 2-finger tendon-driven gripper closing on a sphere (tendons and contact).
 
     python examples/gripper.py [--out out/gripper] [--fast]
 
@@ -61,6 +61,15 @@ def beam_squeeze(tension):
     return np.maximum(f, 0.0)
 
 
+def finger_outline(p, radius):
+    """Outline (2 M, 2) of a finger of ``radius`` (m) around its centreline ``p`` (M, 2)
+    (m) in the x-y plane: the centreline moved by +-radius along its in-plane normal."""
+    t = np.gradient(p, axis=0)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    normal = np.stack([-t[:, 1], t[:, 0]], axis=1)
+    return np.concatenate([p + radius * normal, (p - radius * normal)[::-1]])
+
+
 def main():
     args = parse_args("gripper", __doc__)
     model = sj.build_model(sj.Scene.from_dict(scene(12 if args.fast else 24)))
@@ -80,20 +89,26 @@ def main():
         states.append(np.asarray(eq.p))
         print(f"T = {t:.1f} N: squeeze {squeeze[-1]:.4f} N per finger (beam theory "
               f"{float(beam_squeeze(t)):.4f} N), net force on the fingers "
-              f"{np.round(force, 6)} N, penetration {penetration[-1] / R_FINGER:.1e} r")
+              f"{np.round(force, 6)} N, penetration {penetration[-1] / R_FINGER:.1e} of the "
+              "finger's radius")
 
     import matplotlib.pyplot as plt
     n = model.structure.rod("upper").nodes
-    fig, ax = plt.subplots(figsize=(6, 3.5))
-    for p in (states[0], states[-1]):
-        for rod in (slice(0, n), slice(n, 2 * n)):
-            ax.plot(p[rod, 0] * 1e3, p[rod, 1] * 1e3, "o-", ms=2)
+    fig, ax = plt.subplots(figsize=(6, 3.5), layout="constrained")
     ax.add_patch(plt.Circle((X_SPHERE * 1e3, 0.0), R_SPHERE * 1e3, color="tab:red",
-                            alpha=0.3))
+                            alpha=0.3, label=f"sphere (r = {R_SPHERE * 1e3:g} mm)"))
+    for p, t, color in ((states[0], tensions[0], "tab:gray"),
+                        (states[-1], tensions[-1], "tab:blue")):
+        for k, rod in enumerate((slice(0, n), slice(n, 2 * n))):
+            band = 1e3 * finger_outline(p[rod, :2], R_FINGER)
+            ax.fill(band[:, 0], band[:, 1], color=color, alpha=0.35, lw=0,
+                    label=None if k else f"fingers (r = {R_FINGER * 1e3:g} mm), T = {t:g} N")
+            ax.plot(p[rod, 0] * 1e3, p[rod, 1] * 1e3, "-", color=color, lw=0.8)
     ax.set_aspect("equal")
     ax.set_xlabel("x [mm]")
     ax.set_ylabel("y [mm]")
-    ax.set_title(f"fingers at T = {tensions[0]} N and {tensions[-1]} N (centrelines)")
+    ax.set_title("two tendon-driven fingers squeezing a sphere (top view)")
+    fig.legend(loc="outside lower center", ncols=3, fontsize="small")
     save(fig, args.out, "grasp.png")
     fig, ax = plt.subplots(figsize=(5, 3.5))
     fine = np.linspace(0.0, tensions[-1], 100)

@@ -91,7 +91,7 @@ def main():
     rng = np.random.default_rng(0)
     summary = {"load_average": os.getloadavg()[0], "elements": elements, "targets_per_robot": count, "length_m": LENGTH,
                "EI_Nm2": EI, "robots": {}}
-    print(f"load average {os.getloadavg()[0]:.1f}; silicone arm, {LENGTH} m, {elements} elements, EI = {EI:.4g} N m^2; "
+    print(f"silicone arm, {LENGTH} m, {elements} elements, EI = {EI:.4g} N m^2; "
           f"{count} reachable targets per robot (middle and tip nodes)")
     for name, actuate in robots.items():
         U = rng.uniform(-0.5, 0.5, (count, actuate.size)) * scale

@@ -1,17 +1,17 @@
-"""Magellan 10Fr robotic catheter, guide + leader actuated by end torques (seed Figs. 19-20).
+"""Magellan 10Fr robotic catheter, guide + leader actuated by end torques (the paper's Figs. 19-20).
 
     python examples/magellan_catheter.py [--out out/magellan_catheter] [--fast]
 
-Scene: examples/scenes/magellan_catheter.json. One rod with two segments (seed: "two
+Scene: examples/scenes/magellan_catheter.json. One rod with two segments (the paper: "two
 consecutive elements, 1-2 the guide and 2-3 the leader"), spring steel (rho 7850 kg/m^3,
 E 210 GPa, nu 0.3), tube sections: guide d_e = 3.48 mm, d_i = 2.54 mm (EI = 1.083 N m^2,
 GJ = 0.833 N m^2); leader d_e = 2.13 mm, d_i = 1.00 mm (EI = 0.202 N m^2, GJ = 0.155 N m^2).
 Torques for 0 <= t <= 1 s: at the end of the guide (point 2) tau_2 = (0.4, 4, 40) t and at
 the tip (point 3) tau_3 = (-0.15, -1.5, -15) t.
 
-Choices (the seed gives no lengths; spec 7.3, errata 19):
+Choices (the paper gives no lengths):
 * **Units: N m, as printed.** Read as N mm (a realistic tendon torque) they would bend
-  these steel tubes by less than 0.01 rad, nothing like the seed's snapshots; in N m
+  these steel tubes by less than 0.01 rad, nothing like the paper's snapshots; in N m
   the catheter curls visibly, as in Fig. 20.
 * **Lengths: guide 90 mm, leader 30 mm** (a short "minimal extension" of the leader,
   consistent with the figure's proportions). At t = 1 s the net moment bends the guide by
@@ -19,8 +19,8 @@ Choices (the seed gives no lengths; spec 7.3, errata 19):
   15 * 0.03 / 0.202 = 2.2 rad; the x and y components add torsion and out-of-plane bending.
 * The catheter starts straight along world x, clamped at the origin with its section frame
   equal to the world frame; the torques are dead (world-frame) vectors; no gravity.
-* Mesh: the seed uses one element per segment; a segment turning by more than ~pi needs
-  more (spec 3.9): 12 + 4 elements of 7.5 mm (3 + 1 with --fast). dt = 0.01 s,
+* Mesh: the paper uses one element per segment; a segment turning by more than ~pi needs
+  more: 12 + 4 elements of 7.5 mm (3 + 1 with --fast). dt = 0.01 s,
   consistent inertia, rho_inf = 0.5: the bending modes of this light steel catheter
   have periods of a few ms, below the step, and stronger numerical damping of them lets
   Newton converge in ~5 iterations per step (with rho_inf = 0.9 nearly every step is
@@ -106,10 +106,10 @@ def main():
     ps, Rs = plotting.sample_result(result, "catheter")
     fig = plotting.plot_configurations(
         ps[idx], Rs[idx], labels=[f"t = {time[i]:.2f} s" for i in idx],
-        title="Magellan catheter: guide 90 mm + leader 30 mm (seed Fig. 20)")
+        title="Magellan catheter: guide 90 mm + leader 30 mm (the paper's Fig. 20)")
     ax = fig.axes[0]
     ax.scatter(*p[idx][:, junction].T, color="k", s=12, label="guide end (2)")
-    ax.legend(fontsize="small")
+    ax.legend(fontsize="small", loc="upper left")
     save(fig, args.out, "snapshots.png")
     save(plotting.plot_result_tip(result, "catheter", title="catheter tip (point 3)"),
          args.out, "tip_displacements.png")

@@ -1,5 +1,5 @@
 """The Magellan catheter of examples/magellan_catheter.py driven by tendons instead of
-prescribed torques (seed Figs. 19-20; issue 13), side by side with the torque version.
+prescribed torques (the paper's Figs. 19-20), side by side with the torque version.
 
     python examples/magellan_tendons.py [--out out/magellan_tendons] [--fast]
 
@@ -89,15 +89,18 @@ def main():
     length = GUIDE_LENGTH + LEADER_LENGTH
     tip_t, tip_m = tendons.positions("catheter")[-1, -1], torque.positions("catheter")[-1, -1]
     error = float(np.linalg.norm(tip_t - reference) / length)
-    print(f"tendons: T_guide = {tendons.tendon_tension('guide')[-1]:.0f} N, "
-          f"T_leader = {tendons.tendon_tension('leader')[-1]:.0f} N at t = 1 s; converged "
-          f"{tendons.converged}, {tendons.newton_iterations} Newton iterations")
+    print(f"tendons at t = 1 s: T_guide = {tendons.tendon_tension('guide')[-1]:.0f} N, "
+          f"T_leader = {tendons.tendon_tension('leader')[-1]:.0f} N: the tensions that "
+          f"give the torque version's {M_GUIDE_END:g} and {M_TIP:g} N m at "
+          f"{1e3 * R_GUIDE:.2f} and {1e3 * R_LEADER:.2f} mm from the axis, far beyond a real "
+          "catheter's, as those torques are (see magellan_catheter.py); "
+          f"converged {tendons.converged}, {tendons.newton_iterations} Newton iterations")
     print(f"t = 1 s tip: tendons {np.round(tip_t, 5)} m (two arcs {np.round(reference, 5)} m, "
           f"|tip - ref| / L = {error:.1e}); torques {np.round(tip_m, 5)} m")
 
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.6), sharex=True, sharey=True)
-    for ax, result, title in ((axes[0], torque, "prescribed torques (seed)"),
+    for ax, result, title in ((axes[0], torque, "prescribed torques (the paper)"),
                               (axes[1], tendons, "tendons")):
         time, (p, _) = result.time, plotting.sample_result(result, "catheter")
         for t in (0.25, 0.5, 0.75, 1.0):     # the helical interpolation between nodes

@@ -1,5 +1,5 @@
 """A planar parallel continuum robot: two nylon rods clamped to the floor, welded at the
-top to a rigid plate (issue 13: bodies and joints, statics and dynamics).
+top to a rigid plate (bodies and joints, statics and dynamics).
 
     python examples/parallel_robot.py [--out out/parallel_robot] [--fast]
 
@@ -92,7 +92,7 @@ def main():
     rayleigh = float(2 * np.pi * np.sqrt((PLATE + 2 * 13 / 35 * rho_A * L) / stiffness))
     tips = moving.positions("l")[:, -1]
     gap = float(np.abs(tips - (p + np.einsum("tij,j->ti", R, [-SPACING / 2, 0, 0]))).max())
-    print(f"dynamics: {moving.message}; sway period {period:.4f} s (Rayleigh "
+    print(f"dynamics: {'converged' if moving.converged else moving.message}; sway period {period:.4f} s (Rayleigh "
           f"{rayleigh:.4f} s, {period / rayleigh - 1:+.2%}); largest weld gap {gap:.1e} m")
 
     import matplotlib.pyplot as plt

@@ -1,18 +1,18 @@
-"""Pure bending of a cantilever under five tip torques (seed Fig. 9, eqs. 83-91).
+"""Pure bending of a cantilever under five tip torques (the paper's Fig. 9, eqs. 83-91).
 
     python examples/pure_bending.py [--out out/pure_bending] [--fast]
 
-Set-up (seed "Pure bending"): straight rod, L = 1 m, EI_y = 1 N m^2, clamped at s = 0
+Set-up (the paper's "Pure bending"): straight rod, L = 1 m, EI_y = 1 N m^2, clamped at s = 0
 with its section frame equal to the world frame, tip moment tau e_y (world y = local y;
 for bending about a principal axis a dead and a follower moment coincide) with
-tau = 1, 2, 3, 4, 5 N m. The seed gives only EI_y and L; the other constants are the
+tau = 1, 2, 3, 4, 5 N m. The paper gives only EI_y and L; the other constants are the
 synthetic arm's (EA = GA = 1e3 N, GJ = EI_z = 1 N m^2; they play no role because the
-internal force is zero). Exact solution (spec S73-S75): constant curvature
+internal force is zero). Exact solution: constant curvature
 kappa = tau / EI_y, p(s) = (sin(kappa s)/kappa, 0, -(1 - cos(kappa s))/kappa),
 R(s) = R_y(kappa s): at tau = 2 pi the rod would close into a full circle.
 
 The helical element reproduces constant strain exactly, so every node *and* the helical
-interpolation between nodes (seed eq. 27) lie on the exact arc up to round-off, with any
+interpolation between nodes (the paper's eq. 27) lie on the exact arc up to round-off, with any
 number of elements whose relative rotation stays below pi (5 elements by default, 3 with
 --fast). Printed and saved: the largest node-position error over all nodes and torques
 relative to L, the largest rotation error, and the largest distance of the interpolated
@@ -30,7 +30,7 @@ from simsoft_jax import plotting
 from _common import parse_args, save, write_summary
 
 L, EI = 1.0, 1.0
-TORQUES = (1.0, 2.0, 3.0, 4.0, 5.0)   # N m, seed Fig. 9
+TORQUES = (1.0, 2.0, 3.0, 4.0, 5.0)   # N m, the paper's Fig. 9
 
 
 def scene(torque: float, elements: int) -> dict:
@@ -49,7 +49,7 @@ def scene(torque: float, elements: int) -> dict:
 
 
 def exact_arc(torque: float, s):
-    """Exact frames of pure bending (spec S74-S75): positions (M, 3), rotations (M, 3, 3)."""
+    """Exact frames of pure bending: positions (M, 3), rotations (M, 3, 3)."""
     k = torque / EI
     c, sn = np.cos(k * s), np.sin(k * s)
     p = np.stack([sn / k, 0.0 * s, -(1.0 - c) / k], axis=1)
@@ -87,13 +87,13 @@ def main():
         ax.plot(ex[:, 0], ex[:, 2], "k--", lw=0.8)
         ax.plot(shape[:, 0], shape[:, 2], color=color, lw=2, label=f"tau = {tau:g} N m")
         ax.plot(*res.positions("arm")[:, [0, 2]].T, "o", color=color, ms=4)
-    ax.plot([], [], "k--", lw=0.8, label="exact arc (S74)")
+    ax.plot([], [], "k--", lw=0.8, label="exact arc")
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("z [m]")
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small")
-    ax.set_title(f"Pure bending, {elements} helical elements (seed Fig. 9)")
+    ax.set_title(f"Pure bending, {elements} helical elements (the paper's Fig. 9)")
     save(fig, args.out, "pure_bending.png")
     fig = plotting.plot_configurations(
         np.stack(shapes), np.stack(frames), labels=[f"tau = {t:g} N m" for t in TORQUES],

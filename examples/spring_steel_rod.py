@@ -1,12 +1,12 @@
-"""Helical motion of a spring-steel rod (seed Fig. 7).
+"""Helical motion of a spring-steel rod (the paper's Fig. 7).
 
     python examples/spring_steel_rod.py [--out out/spring_steel_rod] [--fast]
 
 Scene: examples/scenes/helical_spring_steel.json. Cantilever, circular d = 2 mm,
 L = 0.5 m, spring steel (rho 7850 kg/m^3, E 210 GPa, nu 0.3, G = E/2(1 + nu)); tip force
-f(t) = 0.14 t N and tip torque tau(t) = 0.49 t N m for 0 <= t <= 3 s (seed).
+f(t) = 0.14 t N and tip torque tau(t) = 0.49 t N m for 0 <= t <= 3 s (the paper).
 
-Choices where the seed is silent (spec 7.2, errata 18; see tests/test_dynamics_scenes.py):
+Choices where the paper is silent (see tests/test_dynamics_scenes.py):
 both loads dead (world frame), the torque about world z (coils the rod in the x-y plane),
 the force along world z; no gravity; Cowper shear coefficient 0.886; 10 helical
 elements (4 with --fast), consistent inertia, dt = 0.01 s, rho_inf = 0.9 (damps the axial

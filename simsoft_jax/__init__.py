@@ -5,7 +5,11 @@ on SE(3) with all six strains, static equilibrium by Newton on the Lie group, gr
 by the implicit function theorem.
 
 Importing the package turns on JAX's float64 mode (``jax_enable_x64``): the solvers need
-double precision, and every array the package creates is float64.
+double precision, and every array the package creates is float64. The import itself is
+light (no JAX): the public names below are loaded on first use (PEP 562), so that reading
+and checking a scene (``simsoft-jax validate``) does not pay JAX's import. Float64 holds
+whatever the import order: with JAX already imported its config is updated, otherwise
+``JAX_ENABLE_X64=1`` is set for the JAX import to come.
 
 Typical use::
 
@@ -23,33 +27,54 @@ For gradients and sweeps work with the Model directly::
 The Model is the one pytree every solver reads (stiffness, inertia, loads and time laws,
 drives, initial velocities); replacing any of its arrays never recompiles.
 """
-import jax as _jax
+import importlib as _importlib
+import os as _os
+import sys as _sys
 
-_jax.config.update("jax_enable_x64", True)
+if "jax" in _sys.modules:
+    _sys.modules["jax"].config.update("jax_enable_x64", True)
+else:  # read by JAX when it is imported (by the first solver module used)
+    _os.environ["JAX_ENABLE_X64"] = "1"
 
-from .actuation import leaf_actuation  # noqa: E402
-from .dynamics import (DynamicSettings, State, Trajectory, energy,  # noqa: E402
-                       initial_state, simulate)
-from .inverse import InverseResult, solve_inverse  # noqa: E402
-from .inverse_dynamics import TrackingResult, track_path  # noqa: E402
-from .loads import LoadChannels  # noqa: E402
-from .materials import BUILTIN_MATERIALS, Material, get_material  # noqa: E402
-from .model import Model, Structure, build_model  # noqa: E402
-from .results import Result, run  # noqa: E402
-from .scene import Scene, load_scene, save_scene  # noqa: E402
-from .sections import (Section, circle, custom_inertia, custom_stiffness,  # noqa: E402
-                       inertia_diagonal, rectangle, semicircle, stiffness_diagonal, tube,
-                       viscosity_diagonal)
-from .statics import Equilibrium, StaticSettings, solve_static  # noqa: E402
-from .status import SolveError, Status  # noqa: E402
-
-__all__ = [
-    "BUILTIN_MATERIALS", "DynamicSettings", "Equilibrium", "InverseResult",
-    "LoadChannels", "Material", "Model", "Result", "Scene", "Section", "SolveError",
-    "State", "StaticSettings", "Status", "Structure", "TrackingResult", "Trajectory",
-    "build_model", "circle", "custom_inertia", "custom_stiffness", "energy",
-    "get_material", "inertia_diagonal", "initial_state", "leaf_actuation", "load_scene",
-    "rectangle", "run", "save_scene", "semicircle", "simulate", "solve_inverse",
-    "solve_static", "stiffness_diagonal", "track_path", "tube", "viscosity_diagonal",
-]
+# public name -> the module that defines it (loaded on first use)
+_PUBLIC = {
+    "leaf_actuation": "actuation",
+    **dict.fromkeys(("DynamicSettings", "State", "Trajectory", "energy", "initial_state",
+                     "simulate"), "dynamics"),
+    **dict.fromkeys(("InverseResult", "solve_inverse"), "inverse"),
+    **dict.fromkeys(("TrackingResult", "track_path"), "inverse_dynamics"),
+    "LoadChannels": "loads",
+    **dict.fromkeys(("BUILTIN_MATERIALS", "Material", "get_material"), "materials"),
+    **dict.fromkeys(("Model", "Structure", "build_model"), "model"),
+    **dict.fromkeys(("Result", "run"), "results"),
+    **dict.fromkeys(("Scene", "load_scene", "save_scene"), "scene"),
+    **dict.fromkeys(("Section", "circle", "custom_inertia", "custom_stiffness",
+                     "inertia_diagonal", "rectangle", "semicircle", "stiffness_diagonal",
+                     "tube", "viscosity_diagonal"), "sections"),
+    **dict.fromkeys(("Equilibrium", "StaticSettings", "solve_static"), "statics"),
+    **dict.fromkeys(("SolveError", "Status"), "status"),
+}
+__all__ = sorted(_PUBLIC)
 __version__ = "0.1.0"
+
+
+def __getattr__(name: str):
+    """A public name (:data:`__all__`) or a submodule (``sj.princeton``), imported on
+    first use and kept in the package's namespace."""
+    if name in _PUBLIC:
+        value = getattr(_importlib.import_module(f".{_PUBLIC[name]}", __name__), name)
+    elif not name.startswith("__"):
+        try:
+            value = _importlib.import_module(f".{name}", __name__)
+        except ModuleNotFoundError as err:
+            if err.name != f"{__name__}.{name}":
+                raise
+            raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    else:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_PUBLIC))

@@ -7,7 +7,7 @@
   equilibrium; prints the compile and the solve time separately;
 * ``validate SCENE``: check a scene file without solving it;
 * ``princeton``: the 25 load cases of the Princeton beam, a results table and figures
-  (seed Figs. 15-18 when ``--measurements`` are given);
+  (the paper's Figs. 15-18 when ``--measurements`` are given);
 * ``calibrate --scenes S... --measurements M.csv --params EIy,EIz,GJ -o fitted.json``:
   fit sectional parameters to measured positions; with an observation file (points at
   offsets, displacements, rotations/twist, reference cases, std), parameters by groups
@@ -22,11 +22,14 @@ Compiled solver programs are kept in JAX's persistent compilation cache
 (:mod:`simsoft_jax.compile_cache`; ``~/.cache/simsoft_jax/xla`` or
 ``$SIMSOFT_JAX_CACHE_DIR``), so a second run of a scene structure does not compile
 again: ``--cache-dir DIR`` moves it, ``--no-cache`` (or ``SIMSOFT_JAX_CACHE=0``) turns it
-off; both go before or after the command name.
+off; both go before or after the command name (``bench`` has its own options). A
+program compiled for a new scene structure says so on stderr, with the time it took
+(``SIMSOFT_JAX_QUIET=1`` silences it).
 """
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from pathlib import Path
 
@@ -270,7 +273,8 @@ def _predict(args) -> int:
 
 def _add_calibration_commands(sub):
     """The ``calibrate`` and ``predict`` sub-commands."""
-    p_cal = sub.add_parser("calibrate", help="fit section parameters to measurements")
+    p_cal = sub.add_parser("calibrate", help="fit section parameters to measurements",
+                           parents=[_cache_flags()])
     p_cal.add_argument("--scenes", nargs="+", required=True, help="static scene files")
     p_cal.add_argument("--measurements", required=True,
                        help="CSV: scene,rod,node,x,y,z (positions) or the observation "
@@ -282,10 +286,12 @@ def _add_calibration_commands(sub):
                        "bounds, name)")
     p_cal.add_argument("--split", type=int, default=0,
                        help="hold out every N-th row (N >= 2) and predict it after the fit")
-    p_cal.add_argument("--max-steps", type=int, default=100)
+    p_cal.add_argument("--max-steps", type=int, default=100,
+                       help="optimizer steps at most (default 100)")
     p_cal.add_argument("-o", "--output", help="fitted parameters (.json)")
     p_cal.set_defaults(func=_calibrate)
-    p_pre = sub.add_parser("predict", help="predict measurements with a fitted result")
+    p_pre = sub.add_parser("predict", help="predict measurements with a fitted result",
+                           parents=[_cache_flags()])
     p_pre.add_argument("--fitted", required=True, help="JSON written by calibrate -o "
                        "(observation layout)")
     p_pre.add_argument("--scenes", nargs="+", required=True, help="static scene files")
@@ -305,11 +311,11 @@ def _bench(bench_args: list) -> int:
     spec = importlib.util.spec_from_file_location("simsoft_jax_benchmarks", script)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    return module.main(bench_args)
+    return module.main(bench_args, prog="simsoft-jax bench")
 
 
 def _cache_flags() -> argparse.ArgumentParser:
-    """``--no-cache`` and ``--cache-dir``, accepted before the command and after ``run``
+    """``--no-cache`` and ``--cache-dir``, accepted before the command and after it
     (absent ones leave no attribute, so the two places do not overwrite each other)."""
     flags = argparse.ArgumentParser(add_help=False)
     flags.add_argument("--no-cache", action="store_true", default=argparse.SUPPRESS,
@@ -331,7 +337,8 @@ def _configure_cache(args) -> None:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="simsoft-jax", description=__doc__,
+    description = re.sub(r":\w+:`([^`]+)`", r"\1", __doc__).replace("``", "")  # plain text
+    parser = argparse.ArgumentParser(prog="simsoft-jax", description=description,
                                      formatter_class=argparse.RawDescriptionHelpFormatter,
                                      parents=[_cache_flags()])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -350,11 +357,14 @@ def main(argv=None) -> int:
     p_run.add_argument("--plot", help="figure of the solution (.png, .pdf, .svg)")
     p_run.add_argument("--animate", help="animation of a dynamic run (.gif, or .mp4 with ffmpeg)")
     p_run.set_defaults(func=_run)
-    p_val = sub.add_parser("validate", help="check a scene file without solving it")
-    p_val.add_argument("scene")
+    p_val = sub.add_parser("validate", help="check a scene file without solving it",
+                           parents=[_cache_flags()])   # accepted everywhere; no solve here
+    p_val.add_argument("scene", help="scene file (.toml or .json)")
     p_val.set_defaults(func=_validate)
-    p_pr = sub.add_parser("princeton", help="replay the 25 Princeton load cases (table + figures)")
-    p_pr.add_argument("--elements", type=int, default=16)
+    p_pr = sub.add_parser("princeton", help="replay the 25 Princeton load cases (table + figures)",
+                          parents=[_cache_flags()])
+    p_pr.add_argument("--elements", type=int, default=16,
+                      help="finite elements along the beam (default 16)")
     p_pr.add_argument("--no-gravity", action="store_true", help="leave the beam's weight out")
     p_pr.add_argument("--relative", action="store_true",
                       help="deflections relative to the self-weight state")
@@ -370,7 +380,8 @@ def main(argv=None) -> int:
     if argv[:1] == ["bench"]:          # its options belong to benchmarks/run_all.py
         return _bench(argv[1:])
     args = parser.parse_args(argv)
-    _configure_cache(args)
+    if args.func is not _validate or getattr(args, "no_cache", False):
+        _configure_cache(args)   # plain validate reads the scene only: no JAX import
     return args.func(args)
 
 

@@ -21,6 +21,10 @@ loadable executables instead (``jax.experimental.serialize_executable``, in
 ``<cache>/programs/``, bounded to ``MAX_BYTES / 4``, least recently used dropped), so
 a later process only loads one (~0.3-0.5 s for the helical rollout).
 
+A program compiled (not loaded) for a new structure says so: one line on stderr,
+"compiling the static solver for this scene structure (kept for next time)... 41.2 s"
+(``SIMSOFT_JAX_QUIET=1`` silences it).
+
 The cache is trusted code: keep it in a folder only you can write to (JAX's warning on
 ``jax.config.update("jax_compilation_cache_dir", ...)``).
 """
@@ -33,6 +37,7 @@ import importlib.util
 import os
 import platform
 import re
+import sys
 import threading
 import time
 import warnings
@@ -48,6 +53,9 @@ from .output import write_atomic
 
 ENV_DIR = "SIMSOFT_JAX_CACHE_DIR"
 ENV_SWITCH = "SIMSOFT_JAX_CACHE"
+ENV_QUIET = "SIMSOFT_JAX_QUIET"
+# the programs' names in the compile message
+PROGRAM_NAMES = {"static": "the static solver", "rollout": "the dynamic solver"}
 # jax.monitoring duration event of a program loaded from ``<cache>/programs/`` (keyword
 # ``fun_name``, as JAX's compile events), for counters of compiled-or-loaded programs
 LOADED_EVENT = "/simsoft_jax/compile_cache/program_loaded"
@@ -192,6 +200,23 @@ def _store(path: Path, compiled) -> None:
 
 
 @contextlib.contextmanager
+def announced(name: str, kept: bool):
+    """Say on stderr that the program ``name`` is being compiled, then the seconds it took
+    (one line; nothing with ``SIMSOFT_JAX_QUIET`` set to 1, true, yes or on)."""
+    if os.environ.get(ENV_QUIET, "0").strip().lower() in ("1", "true", "yes", "on"):
+        yield
+        return
+    what = PROGRAM_NAMES.get(name, f"the {name} program")
+    print(f"compiling {what} for this scene structure"
+          f"{' (kept for next time)' if kept else ''}...", end="", file=sys.stderr, flush=True)
+    start = time.perf_counter()
+    try:
+        yield
+    finally:
+        print(f" {time.perf_counter() - start:.1f} s", file=sys.stderr, flush=True)
+
+
+@contextlib.contextmanager
 def _jax_cache_off():
     """JAX's own persistent cache off inside the block: a program read from it serializes
     without its compiled functions (loading that again fails), and a program stored
@@ -237,17 +262,20 @@ def compile_stored(jitted, args: tuple, out_tree, name: str):
     dtypes), this package's source and the machine (:func:`_source_key`); a later
     process loads it. ``jitted``: a :func:`simsoft_jax._xla.jit` program (compiled with its
     own options). ``out_tree``: the pytree structure of the outputs. Returns a callable
-    with ``jitted``'s signature.
+    with ``jitted``'s signature. Compiling (not loading) is announced (:func:`announced`).
     """
     folder = jax.config.jax_compilation_cache_dir
     if not folder:
-        return jitted.lower(*args).compile()
+        with announced(name, kept=False):
+            return jitted.lower(*args).compile()
     leaves, tree = jax.tree_util.tree_flatten(args)
     signature = repr((name, tree, [(np.shape(x), str(x.dtype if hasattr(x, "dtype") else np.result_type(x)),
                                     bool(getattr(x, "weak_type", False))) for x in leaves]))
     key = hashlib.sha256((signature + _source_key()).encode()).hexdigest()[:40]
     path = Path(folder) / "programs" / f"{name}-{key}.xla"
-    compiled = (_load(path, leaves, out_tree.num_leaves, name)
-                or _compile(jitted, tree, leaves, name, path))
+    compiled = _load(path, leaves, out_tree.num_leaves, name)
+    if compiled is None:
+        with announced(name, kept=True):
+            compiled = _compile(jitted, tree, leaves, name, path)
     return lambda *a: jax.tree_util.tree_unflatten(
         out_tree, compiled(*jax.tree_util.tree_leaves(a)))

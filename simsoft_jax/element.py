@@ -1,7 +1,7 @@
 """One two-node helical SE(3) element (spec algorithm.md section 3), written for a single
 element and ``vmap``-ped by :mod:`simsoft_jax.assembly`.
 
-Nodal frames are the cross-section frames themselves (the seed's constant offsets
+Nodal frames are the cross-section frames themselves (the paper's constant offsets
 ``H_A0, H_B0`` of eqs. 26-30 are absorbed into the nodal reference frames, so
 ``G_A = G_B = I`` in spec S33-S38; both elements sharing a node then share its section
 frame, which is the continuity condition the offsets must satisfy anyway).
@@ -23,12 +23,12 @@ _GAUSS_WEIGHTS = 0.5 * np.array([5.0, 8.0, 5.0]) / 9.0
 
 
 def relative_twist(RA, pA, RB, pB):
-    """Element deformation ``d = log(H_A^-1 H_B)`` (seed eq. 28, spec S33), shape (6,)."""
+    """Element deformation ``d = log(H_A^-1 H_B)`` (the paper's eq. 28, spec S33), shape (6,)."""
     return lie.log_se3(lie.relative_pose(RA, pA, RB, pB))
 
 
 def strain_map(d):
-    """``P(d) = [-T^-1(-d), T^-1(d)]`` (6,12): ``d_dot = P(d) [v_A; v_B]`` (seed eqs. 41-42, S37).
+    """``P(d) = [-T^-1(-d), T^-1(d)]`` (6,12): ``d_dot = P(d) [v_A; v_B]`` (paper eqs. 41-42, S37).
 
     Both inverse tangents share their coefficients: with ``W = skew(d_w)``, ``V = skew(d_u)``,
     ``T^-1(+-d) = [[I +- W/2 + g2 W^2, +-V/2 + C], [0, I +- W/2 + g2 W^2]]`` where
@@ -74,7 +74,7 @@ def strain_energy(d, d0, length, stiffness):
 
 
 def internal_force(P, d, d0, length, stiffness):
-    """Elastic nodal forces ``P(d)^T K (d - d0)/L`` (12,) (seed eq. 48, spec S36, S39).
+    """Elastic nodal forces ``P(d)^T K (d - d0)/L`` (12,) (the paper's eq. 48, spec S36, S39).
 
     ``P = strain_map(d)`` is passed in so that callers computing it once can share it.
     ``stiffness``: the diagonal (6,) or the full symmetric matrix (6,6)
@@ -231,7 +231,7 @@ def follower_distributed_force(d, P, length, local_force):
 
 
 def velocity_field_map(xi, d, P):
-    """``N(s, d)`` (6,12) with ``v(s) = N [v_A; v_B]`` at ``xi = s/L`` (seed eqs. 36, 40; S38).
+    """``N(s, d)`` (6,12) with ``v(s) = N [v_A; v_B]`` at ``xi = s/L`` (paper eqs. 36, 40; S38).
 
     Written as ``N = [Ad_{exp(-xi d)}, 0] + xi T(xi d) P(d)`` (the same as S38 by S22),
     reusing the element's strain map ``P = strain_map(d)`` (6,12).
@@ -242,7 +242,7 @@ def velocity_field_map(xi, d, P):
 
 
 def viscous_force(P, velocities, length, viscosity):
-    """Kelvin-Voigt forces ``P^T Upsilon P v_e / L`` (12,) (seed eq. 8, spec S40).
+    """Kelvin-Voigt forces ``P^T Upsilon P v_e / L`` (12,) (the paper's eq. 8, spec S40).
 
     ``velocities`` (12,) are the nodal body velocities ``[v_A; v_B]``; ``viscosity`` the
     diagonal ``mu [3A, A, A, J_t, 3Iy, 3Iz]`` (spec S28).

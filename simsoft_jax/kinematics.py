@@ -1,9 +1,9 @@
 """Rod shape between nodes, element deformations and the helix geometry of each element.
 
-* forward kinematics inside an element (seed eq. 27, spec S32):
+* forward kinematics inside an element (the paper's eq. 27, spec S32):
   ``H(s) = H_A exp((s/L) d)`` with ``d = log(H_A^-1 H_B)``;
-* inverse kinematics (seed eq. 28, spec S33): ``d`` from the two nodal frames;
-* curvature and torsion of each element's helix (seed eqs. 68-73, spec S50):
+* inverse kinematics (the paper's eq. 28, spec S33): ``d`` from the two nodal frames;
+* curvature and torsion of each element's helix (the paper's eqs. 68-73, spec S50):
   ``kappa = |d_w x d_u| / |d_u|^2``, ``tau = (d_w . d_u) / |d_u|^2``.
 Shapes: R (N,3,3), p (N,3) nodal frames of a rod (or of a whole model).
 """
@@ -44,7 +44,7 @@ def sample_shape(R, p, points_per_element: int = 8):
 def curvature_torsion(d):
     """Curvature (1/m) and torsion (1/m) of the helix of an element with deformation ``d`` (6,).
 
-    Spec S50 (seed eqs. 68-73 generalized to ``|d_u| != L``); for the total (Darboux)
+    Spec S50 (the paper's eqs. 68-73 generalized to ``|d_u| != L``); for the total (Darboux)
     curvature ``sqrt(kappa^2 + tau^2) = |d_w| / |d_u|``.
     """
     du, dw = d[:3], d[3:]

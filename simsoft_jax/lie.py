@@ -134,7 +134,7 @@ _SKEW_BASIS = -np.array([[[float(np.linalg.det(np.eye(3)[[i, j, k]])) for k in r
 
 
 def skew(w):
-    """3x3 skew matrix with ``skew(w) @ y = w x y`` (seed eq. 115, spec S1); ``w`` (3,)
+    """3x3 skew matrix with ``skew(w) @ y = w x y`` (the paper's eq. 115, spec S1); ``w`` (3,)
     or (3, ...) gives (3, 3, ...)."""
     w = jnp.asarray(w)
     basis = _SKEW_BASIS.reshape((3, 3, 3) + (1,) * (w.ndim - 1))
@@ -159,7 +159,7 @@ def spatial_inertia(mass, offset, inertia):
 
 
 def hat_se3(xi):
-    """4x4 matrix of the twist ``xi = [U; Omega]`` (seed eq. 114, spec S2)."""
+    """4x4 matrix of the twist ``xi = [U; Omega]`` (the paper's eq. 114, spec S2)."""
     xi = jnp.asarray(xi)
     top = jnp.concatenate([skew(xi[3:]), xi[:3, None]], axis=1)
     return jnp.concatenate([top, jnp.zeros((1, 4), xi.dtype)], axis=0)
@@ -171,14 +171,14 @@ def vee_se3(X):
 
 
 def ad_se3(xi):
-    """6x6 adjoint of the Lie algebra, ``ad_a b = [a, b]`` (seed eq. 121, spec S3)."""
+    """6x6 adjoint of the Lie algebra, ``ad_a b = [a, b]`` (the paper's eq. 121, spec S3)."""
     U, W = skew(xi[:3]), skew(xi[3:])
     Z = jnp.zeros((3, 3), W.dtype)
     return jnp.block([[W, U], [Z, W]])
 
 
 def adjoint_se3(H):
-    """6x6 group adjoint ``Ad_H`` with ``H hat(y) H^-1 = hat(Ad_H y)`` (seed eq. 118, S4)."""
+    """6x6 group adjoint ``Ad_H`` with ``H hat(y) H^-1 = hat(Ad_H y)`` (the paper's eq. 118, S4)."""
     R, p = H[:3, :3], H[:3, 3]
     Z = jnp.zeros((3, 3), R.dtype)
     return jnp.block([[R, skew(p) @ R], [Z, R]])
@@ -189,21 +189,21 @@ def adjoint_se3(H):
 # --------------------------------------------------------------------------------------
 
 def exp_so3(w):
-    """Rotation matrix ``exp(skew(w))`` (Rodrigues, seed eq. 124, spec S7), shape (3,3)."""
+    """Rotation matrix ``exp(skew(w))`` (Rodrigues, the paper's eq. 124, spec S7), shape (3,3)."""
     alpha, beta, *_ = _forward_coefficients(w)
     W = skew(w)
     return jnp.eye(3, dtype=W.dtype) + alpha * W + 0.5 * beta * (W @ W)
 
 
 def tangent_so3(w):
-    """Body tangent ``T_SO3(w) = I - (beta/2) W + a2 W^2`` (seed eq. 130, spec S8)."""
+    """Body tangent ``T_SO3(w) = I - (beta/2) W + a2 W^2`` (the paper's eq. 130, spec S8)."""
     _, beta, a2, _, _ = _forward_coefficients(w)
     W = skew(w)
     return jnp.eye(3, dtype=W.dtype) - 0.5 * beta * W + a2 * (W @ W)
 
 
 def tangent_so3_inv(w):
-    """Inverse body tangent ``I + W/2 + g2 W^2`` (spec S9; the seed's eq. 133 is its transpose)."""
+    """Inverse body tangent ``I + W/2 + g2 W^2`` (spec S9; the paper's eq. 133 is its transpose)."""
     g2, _ = inverse_coefficients(w)
     W = skew(w)
     return jnp.eye(3, dtype=W.dtype) + 0.5 * W + g2 * (W @ W)
@@ -257,7 +257,7 @@ def log_so3(R):
 # --------------------------------------------------------------------------------------
 
 def exp_se3(xi):
-    """Pose ``exp(hat(xi))`` = ``(exp_SO3(Omega), T_SO3^T(Omega) U)`` (seed eq. 123, S14), (4,4)."""
+    """Pose ``exp(hat(xi))`` = ``(exp_SO3(Omega), T_SO3^T(Omega) U)`` (paper eq. 123, S14), (4,4)."""
     xi = jnp.asarray(xi)
     U, w = xi[:3], xi[3:]
     R = exp_so3(w)
@@ -267,13 +267,13 @@ def exp_se3(xi):
 
 
 def log_se3(H):
-    """Twist ``[T_SO3^-T(Omega) p; Omega]`` with ``Omega = log_so3(R)`` (seed eq. 126, S15), (6,)."""
+    """Twist ``[T_SO3^-T(Omega) p; Omega]`` with ``Omega = log_so3(R)`` (paper eq. 126, S15), (6,)."""
     w = log_so3(H[:3, :3])
     return jnp.concatenate([_tangent_so3_inv_transpose(w) @ H[:3, 3], w])
 
 
 def tangent_plus(U, w):
-    """Off-diagonal block ``T_+(U, Omega)`` of ``T_SE3`` (spec S17, seed eq. 131 corrected)."""
+    """Off-diagonal block ``T_+(U, Omega)`` of ``T_SE3`` (spec S17, paper eq. 131 corrected)."""
     _, beta, a2, c3, c4 = _forward_coefficients(w)
     Us, W = skew(U), skew(w)
     return (-0.5 * beta * Us + a2 * (Us @ W + W @ Us)
@@ -281,21 +281,21 @@ def tangent_plus(U, w):
 
 
 def _tangent_minus(U, w):
-    """Off-diagonal block ``T_-(U, Omega)`` of ``T_SE3^-1`` (spec S19, seed eq. 135 corrected)."""
+    """Off-diagonal block ``T_-(U, Omega)`` of ``T_SE3^-1`` (spec S19, paper eq. 135 corrected)."""
     g2, g4 = inverse_coefficients(w)
     Us, W = skew(U), skew(w)
     return 0.5 * Us + g2 * (W @ Us + Us @ W) + jnp.dot(w, U) * g4 * (W @ W)
 
 
 def tangent_se3(xi):
-    """Body tangent ``T_SE3(xi)`` (6,6), block upper-triangular (seed eq. 129, spec S16)."""
+    """Body tangent ``T_SE3(xi)`` (6,6), block upper-triangular (the paper's eq. 129, spec S16)."""
     U, w = xi[:3], xi[3:]
     T = tangent_so3(w)
     return jnp.block([[T, tangent_plus(U, w)], [jnp.zeros((3, 3), T.dtype), T]])
 
 
 def tangent_se3_inv(xi):
-    """Inverse body tangent ``T_SE3^-1(xi)`` (6,6) (seed eq. 132, spec S18-S19)."""
+    """Inverse body tangent ``T_SE3^-1(xi)`` (6,6) (the paper's eq. 132, spec S18-S19)."""
     U, w = xi[:3], xi[3:]
     Ti = tangent_so3_inv(w)
     return jnp.block([[Ti, _tangent_minus(U, w)], [jnp.zeros((3, 3), Ti.dtype), Ti]])
@@ -324,7 +324,7 @@ def compose_exp(R, p, xi):
 
 def compose_exp_quadratic(R, p, xi):
     """``(R, p) @ exp_se3(xi)`` to second order in ``xi = [u; w]``:
-    ``(R (I + W + W^2/2), p + R (u + w x u / 2))`` (the series of seed eq. 123 cut after
+    ``(R (I + W + W^2/2), p + R (u + w x u / 2))`` (the series of the paper's eq. 123 cut after
     the quadratic terms). Its value, first and second derivatives at ``xi = 0`` equal
     those of :func:`compose_exp`, at a fraction of the cost of differentiating the full
     exponential twice: for Hessians at the current iterate (joint Lagrangians)."""

@@ -5,7 +5,7 @@ load arrays); :func:`loads_at` adds the channels at time t to those arrays, and
 
 Profiles (scene-format.md): constant 1; ramp ``clip((t - t0)/(t1 - t0), 0, 1)``;
 smoothstep the same passed through ``3x^2 - 2x^3`` (zero slope at both ends); linear
-``rate * t`` (the seed's f(t) = c t); table: linear interpolation of (t, scale), held
+``rate * t`` (the paper's f(t) = c t); table: linear interpolation of (t, scale), held
 constant outside the samples. Kinds are static (one compiled branch per channel), all
 numbers are arrays, so new load values or time laws never recompile.
 """

@@ -2,12 +2,12 @@
 
 A :class:`Material` carries Young's modulus ``E`` (Pa), shear modulus ``G`` (Pa), Poisson's ratio
 ``nu`` (-), mass density (kg/m^3) and the shear viscosity ``mu`` (Pa s) of the Kelvin-Voigt law
-(spec (S28)). For an isotropic material ``G = E / (2 (1 + nu))`` (seed, Grazioso et al. 2019,
+(spec (S28)). For an isotropic material ``G = E / (2 (1 + nu))`` (the paper, Grazioso et al. 2019,
 text after eq. (9)); exactly one of ``G`` and ``nu`` is given and the other is derived.
 
-The built-in library holds the seed's three materials (spec §7.1-7.3, ``scene-format.md``):
+The built-in library holds the paper's three materials (spec §7.1-7.3, ``scene-format.md``):
 
-* ``aluminum_7075``: E 71.7 GPa, G 27.37 GPa, rho 2679 kg/m^3 (Princeton beam, seed eqs. (109)-(110));
+* ``aluminum_7075``: E 71.7 GPa, G 27.37 GPa, rho 2679 kg/m^3 (Princeton beam, paper eqs. (109)-(110));
 * ``spring_steel``: E 210 GPa, nu 0.3, rho 7850 kg/m^3 (helical scene, Magellan catheter);
 * ``silicone``: E 110 kPa, nu 0.5, rho 1080 kg/m^3 (soft body, rehabilitation actuator).
 
@@ -55,7 +55,7 @@ class Material:
         G: shear modulus, Pa, > 0 (give exactly one of ``G`` and ``nu``).
         nu: Poisson's ratio, dimensionless, in (-1, 0.5].
         viscosity: shear viscosity mu, Pa s, >= 0; enters the Kelvin-Voigt damping matrix
-            ``Upsilon = mu diag(3A, A, A, J_t, 3 I_y, 3 I_z)`` (spec (S28), seed eq. (9) corrected).
+            ``Upsilon = mu diag(3A, A, A, J_t, 3 I_y, 3 I_z)`` (spec (S28), paper eq. (9) corrected).
         mass_damping: mass-proportional (Rayleigh) damping constant c, 1/s, >= 0: a force
             ``-c M v`` against the nodal velocities, weighted by the element mass matrix
             (:mod:`simsoft_jax.terms.mass_damping`); each vibration mode decays as
@@ -83,7 +83,7 @@ class Material:
             given = "both" if self.G is not None else "neither"
             raise ValueError(f"G, nu: give exactly one of G and nu ({given} given)")
         if self.nu is not None:
-            # G = E / (2 (1 + nu)), seed text after eq. (9).
+            # G = E / (2 (1 + nu)), the paper's text after eq. (9).
             nu = check_number("nu", self.nu, "in (-1, 0.5]", _valid_nu)
             G = E / (2.0 * (1.0 + nu))
         else:

@@ -15,10 +15,10 @@ centreline and spanned by the local axis ``axis`` of each frame (edges ``p -/+ (
 so bending about that axis keeps the ribbon flat and twist shows as the strip winding; small
 frame triads (x red, y green, z blue) are optional. ``*_result`` helpers take a
 :class:`simsoft_jax.Result` and a rod name and draw the helical interpolation between nodes
-(seed eq. 27, :func:`simsoft_jax.kinematics.sample_shape`).
+(the paper's eq. 27, :func:`simsoft_jax.kinematics.sample_shape`).
 
-Also: tip trajectories (components vs time, seed Figs. 6-8 and 11), error bars grouped by
-load angle (the style of the seed's Figs. 16-18) and work-precision plots (error vs wall
+Also: tip trajectories (components vs time, the paper's Figs. 6-8 and 11), error bars grouped by
+load angle (the style of the paper's Figs. 16-18) and work-precision plots (error vs wall
 time, log-log).
 """
 from __future__ import annotations
@@ -30,6 +30,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib import animation, colormaps
+from matplotlib.ticker import MaxNLocator, NullFormatter, ScalarFormatter
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 TRIAD_COLORS = ("tab:red", "tab:green", "tab:blue")
@@ -117,6 +118,11 @@ def ribbon_vertices(positions, rotations, width, axis=1):
     return np.stack([minus[:-1], plus[:-1], plus[1:], minus[1:]], axis=1)
 
 
+def _ribbon_edges(quads):
+    """The two edge lines ``(N, 3)`` of a ribbon's quadrilaterals ``(N - 1, 4, 3)``."""
+    return [np.concatenate([quads[:, k], quads[-1:, 3 - k]]) for k in (0, 1)]
+
+
 def _draw_rod(ax, p, R, color, width, axis, triads, label):
     """One configuration: centreline, ribbon (with its two edge lines, gids
     ``ribbon_minus`` / ``ribbon_plus``) and optional triads."""
@@ -126,8 +132,7 @@ def _draw_rod(ax, p, R, color, width, axis, triads, label):
     quads = ribbon_vertices(p, R, width, axis)
     ax.add_collection3d(Poly3DCollection(quads, facecolor=color, alpha=0.35,
                                          edgecolor="none"))
-    for k, gid in ((0, "ribbon_minus"), (1, "ribbon_plus")):
-        edge = np.concatenate([quads[:, k], quads[-1:, 3 - k]])
+    for edge, gid in zip(_ribbon_edges(quads), ("ribbon_minus", "ribbon_plus")):
         ax.plot(*edge.T, color=color, lw=0.6, gid=gid)
     if triads:
         step = max(1, len(p) // 12)
@@ -141,7 +146,7 @@ def _draw_rod(ax, p, R, color, width, axis, triads, label):
 
 def plot_rod(positions, rotations=None, *, ax=None, width=None, axis=1, triads=False,
              color="tab:blue", label=None, title=None):
-    """One rod configuration in 3-D with equal axis scaling (seed Figs. 5, 9, 20, 22).
+    """One rod configuration in 3-D with equal axis scaling (the paper's Figs. 5, 9, 20, 22).
 
     positions (N, 3) m; rotations (N, 3, 3) or None (centreline only). ``width`` (m) of the
     ribbon spanned by local axis ``axis`` (default 6 % of the rod's extent); ``triads``
@@ -163,7 +168,7 @@ def plot_configurations(positions, rotations=None, *, labels=None, cmap="viridis
                         ax=None, width=None, axis=1, title=None, colorbar_label=None,
                         values=None, references=None):
     """Several configurations overlaid, coloured along a colormap (load steps or time
-    snapshots; seed Figs. 9, 20, 22).
+    snapshots; the paper's Figs. 9, 20, 22).
 
     positions (K, N, 3) m; rotations (K, N, 3, 3) or None. ``labels`` (K strings) make a
     legend; ``values`` (K,) (e.g. times in s or loads) make a colorbar titled
@@ -194,7 +199,7 @@ def plot_configurations(positions, rotations=None, *, labels=None, cmap="viridis
     set_equal_aspect(ax, p if references is None else np.concatenate(
         [p.reshape(-1, 3), references.reshape(-1, 3)]))
     if labels is not None:
-        ax.legend(fontsize="small")
+        ax.legend(fontsize="small", loc="upper left")
     elif values is not None:
         mappable = plt.cm.ScalarMappable(
             cmap=colormap, norm=plt.Normalize(values.min(), values.max()))
@@ -206,10 +211,10 @@ def plot_configurations(positions, rotations=None, *, labels=None, cmap="viridis
 
 def plot_tip_trajectory(time, tip, *, reference=None, components=("x", "y", "z"),
                         ax=None, title=None, ylabel="tip position [m]"):
-    """Tip position components vs time (seed Figs. 6-8, 11).
+    """Tip position components vs time (the paper's Figs. 6-8, 11).
 
     time (T,) s; tip (T, 3) m; ``reference`` (T, 3) drawn as solid lines with the simulation
-    dotted (the seed's Fig. 11 style). Returns the Figure.
+    dotted (the paper's Fig. 11 style). Returns the Figure.
     """
     t = _array("time", time, [(None,)])
     tip = _array("tip", tip, [(len(t), 3)])
@@ -240,41 +245,98 @@ def animate_rod(positions, path, rotations=None, *, time=None, fps=20, width=Non
     """Write an animation of a rod's motion and return its path.
 
     positions (T, N, 3) m, rotations (T, N, 3, 3) or None, time (T,) s (shown in the
-    title). ``path`` ending in ``.gif`` uses Pillow; ``.mp4`` uses ffmpeg and raises a
-    RuntimeError when ffmpeg is not installed. At most ``max_frames`` evenly spaced
-    frames are drawn; the axes are fixed (equal scaling) over the whole motion.
+    title). ``path`` ending in ``.gif`` is encoded by Pillow;
+    ``.mp4`` uses ffmpeg and raises a RuntimeError when ffmpeg is not installed. At most
+    ``max_frames`` evenly spaced frames are drawn, each once: the axes, fixed (equal
+    scaling) over the whole motion, are rendered a single time and every frame draws only
+    the rod, its tip and the title over them.
     """
     p, R = _frames(positions, rotations, stacked=True)
     if time is not None:
         time = _array("time", time, [(p.shape[0],)])
     path = Path(path)
-    if path.suffix == ".gif":
-        writer = animation.PillowWriter(fps=fps)
-    elif path.suffix == ".mp4":
-        if not animation.FFMpegWriter.isAvailable():
-            raise RuntimeError(f"path: {path.name} needs ffmpeg, which is not installed "
-                               "(write a .gif instead)")
-        writer = animation.FFMpegWriter(fps=fps)
-    else:
+    if path.suffix not in (".gif", ".mp4"):
         raise ValueError(f"path: unsupported suffix {path.suffix!r} (use .gif or .mp4)")
+    if path.suffix == ".mp4" and not animation.FFMpegWriter.isAvailable():
+        raise RuntimeError(f"path: {path.name} needs ffmpeg, which is not installed "
+                           "(write a .gif instead)")
     frames = np.unique(np.linspace(0, p.shape[0] - 1, min(max_frames, p.shape[0])).round()
                        .astype(int))
     width = _default_width(p) if width is None else width
     fig, ax = _axes3d(None, figsize=(5.5, 5.0))
+    set_equal_aspect(ax, p)
+    head = f"{title}  " if title else ""
+    rod = _MovingRod(ax, R is not None)
 
     def draw(i):
-        ax.cla()
-        _draw_rod(ax, p[i], None if R is None else R[i], "tab:blue", width, axis, False, None)
-        ax.scatter(*p[i, -1], color="tab:red", s=12)
-        set_equal_aspect(ax, p)
-        head = f"{title}  " if title else ""
+        rod.update(p[i], None if R is None else R[i], width, axis)
         ax.set_title(head + (f"t = {time[i]:.2f} s" if time is not None else f"frame {i}"))
 
-    anim = animation.FuncAnimation(fig, draw, frames=frames, interval=1000.0 / fps)
     path.parent.mkdir(parents=True, exist_ok=True)
-    anim.save(str(path), writer=writer)
-    plt.close(fig)
+    try:
+        if path.suffix == ".gif":
+            _write_gif(fig, rod.artists + [ax.title], draw, frames, path, fps)
+        else:
+            writer = animation.FFMpegWriter(fps=fps)
+            with writer.saving(fig, str(path), dpi=fig.dpi):
+                for i in frames:
+                    draw(i)
+                    writer.grab_frame()
+    finally:
+        plt.close(fig)
     return path
+
+
+class _MovingRod:
+    """The artists of one rod in an animation (centreline, ribbon and its edges, tip),
+    created once and moved by :meth:`update`."""
+
+    def __init__(self, ax, ribbon: bool):
+        self.line = ax.plot([], [], [], color="tab:blue", lw=2.0)[0]
+        self.tip = ax.plot([], [], [], "o", color="tab:red", ms=4)[0]
+        self.artists = [self.line, self.tip]
+        self.ribbon = None
+        if ribbon:
+            self.ribbon = Poly3DCollection(np.zeros((1, 4, 3)), facecolor="tab:blue",
+                                           alpha=0.35, edgecolor="none")
+            ax.add_collection3d(self.ribbon, autolim=False)
+            self.edges = [ax.plot([], [], [], color="tab:blue", lw=0.6)[0] for _ in (0, 1)]
+            self.artists += [self.ribbon, *self.edges]
+
+    def update(self, p, R, width, axis):
+        """Move to positions ``p`` (N, 3) m and rotations ``R`` (N, 3, 3) (or None)."""
+        self.line.set_data_3d(*p.T)
+        self.tip.set_data_3d(*p[-1:].T)
+        if self.ribbon is not None:
+            quads = ribbon_vertices(p, R, width, axis)
+            self.ribbon.set_verts(quads)
+            for line, edge in zip(self.edges, _ribbon_edges(quads)):
+                line.set_data_3d(*edge.T)
+
+
+def _write_gif(fig, artists, draw, frames, path, fps):
+    """Render the figure without ``artists`` once, then per frame ``draw(i)`` and paint
+    only ``artists`` over that background; encode the frames with Pillow (a palette per
+    frame, fast octree) at ``fps`` frames per second."""
+    from PIL import Image
+    canvas = fig.canvas
+    for artist in artists:
+        artist.set_animated(True)       # left out of the full draw below
+    draw(frames[0])
+    canvas.draw()
+    background = canvas.copy_from_bbox(fig.bbox)
+    images = []
+    for i in frames:
+        draw(i)
+        canvas.restore_region(background)
+        for artist in artists:
+            if hasattr(artist, "do_3d_projection"):
+                artist.do_3d_projection()
+            fig.draw_artist(artist)
+        images.append(Image.fromarray(np.asarray(canvas.buffer_rgba())[..., :3].copy())
+                      .quantize(method=Image.Quantize.FASTOCTREE))
+    images[0].save(path, save_all=True, append_images=images[1:],
+                   duration=round(1000.0 / fps), loop=0)
 
 
 # ------------------------------------------------------------------------- error figures
@@ -290,7 +352,7 @@ def _ragged(name, value, groups):
 def plot_error_bars(groups, mean, std, *, case_labels=None, ax=None, title=None,
                     xlabel="loading angle [deg]", ylabel="error [%]"):
     """Grouped bars of a mean error per load case with its standard deviation as error bar,
-    one group per loading angle (the style of the seed's Figs. 16-18, Princeton beam).
+    one group per loading angle (the style of the paper's Figs. 16-18, Princeton beam).
 
     groups (G,) labels (e.g. angles in degrees); mean, std: G rows, row g holding one value
     per load case of group g (rows may differ in length, e.g. 4 loads at 30 deg and 3 at
@@ -338,12 +400,20 @@ def plot_work_precision(series, *, ax=None, title=None, xlabel="wall time [s]",
     if ax is None:
         fig, ax = plt.subplots(figsize=(6.0, 4.5))
     fig = ax.figure
+    spans = []
     for name, (times, errors) in series.items():
         t = _array(f"series[{name!r}] wall times", times, [(None,)])
         e = _array(f"series[{name!r}] errors", errors, [(len(t),)])
         if np.any(t <= 0) or np.any(e <= 0):
             raise ValueError(f"series[{name!r}]: wall times and errors must be > 0 (log axes)")
         ax.loglog(t, e, "o-", label=str(name))
+        spans.append((t, e))
+    for k, axis in enumerate((ax.xaxis, ax.yaxis)):
+        values = np.concatenate([span[k] for span in spans])
+        if values.max() < 10.0 * values.min():   # under a decade: four plain ticks, not a
+            axis.set_major_locator(MaxNLocator(4))   # crowd of labelled minor ones
+            axis.set_major_formatter(ScalarFormatter())
+            axis.set_minor_formatter(NullFormatter())
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.grid(which="both", alpha=0.3)
@@ -367,7 +437,7 @@ def _samplers(samples_per_element: int):
 
 
 def sample_result(result, rod, samples_per_element=6):
-    """Helical interpolation (seed eq. 27) of ``rod`` in a :class:`simsoft_jax.Result`:
+    """Helical interpolation (the paper's eq. 27) of ``rod`` in a :class:`simsoft_jax.Result`:
     ``(positions, rotations)`` of shapes (M, 3), (M, 3, 3) for a static result or
     (T, M, 3), (T, M, 3, 3) for a dynamic one, ``M = elements * samples_per_element + 1``."""
     R, p = result.rotations(rod), result.positions(rod)
@@ -399,7 +469,7 @@ def plot_result_snapshots(result, rod, count=6, *, samples_per_element=6, **kwar
 
 def plot_result_tip(result, rod, *, displacement=True, **kwargs):
     """:func:`plot_tip_trajectory` of the last node of ``rod`` in a dynamic Result:
-    its displacement from the start (m, the seed's Figs. 6-8) or, with
+    its displacement from the start (m, the paper's Figs. 6-8) or, with
     ``displacement=False``, its position."""
     p = result.positions(rod)
     if p.ndim != 3:

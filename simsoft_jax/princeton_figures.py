@@ -1,4 +1,4 @@
-"""Figures of the Princeton replay in the layout of the seed's Figs. 15-18 (matplotlib).
+"""Figures of the Princeton replay in the layout of the paper's Figs. 15-18 (matplotlib).
 
 * Fig. 15: deflections y (flapwise) and z (edgewise) along the beam, one panel per angle,
   simulated lines and measured markers;
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .princeton import F0, Errors, Replay
+from .princeton import Errors, Replay
 
 
 def _pyplot():
@@ -44,7 +44,7 @@ def deflections(replay: Replay, path, measured: np.ndarray | None = None):
             for k, style in ((0, "-"), (1, "--")):
                 curve = np.concatenate([[0.0], 1e3 * replay.deflection[c, :, k]])
                 line, = ax.plot(stations, curve, style, lw=1.2, color=color,
-                                label=f"{replay.load_N[c] / F0:g} f0" if k == 0 else None)
+                                label=f"{replay.load_N[c]:.3g} N" if k == 0 else None)
                 color = line.get_color()
                 if measured is not None:
                     ax.plot(replay.stations_m, 1e3 * measured[c, :, k], "o" if k == 0 else "s",
@@ -53,7 +53,7 @@ def deflections(replay: Replay, path, measured: np.ndarray | None = None):
         ax.set_xlabel("r [m]")
         ax.set_ylabel("deflection [mm]")
         ax.legend(fontsize=7)
-    fig.suptitle("Princeton beam: y (solid) and z (dashed) deflections"
+    fig.suptitle("Princeton beam: y (solid) and z (dashed) deflections; tip loads in N"
                  + ("; markers: measured" if measured is not None else ""))
     fig.tight_layout()
     fig.savefig(path, dpi=110)

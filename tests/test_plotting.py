@@ -165,6 +165,31 @@ def test_animation_writes_a_gif(tmp_path):
             plotting.animate_rod(frames, tmp_path / "rod.mp4")
 
 
+def test_gif_frames_show_the_motion(tmp_path):
+    """Each frame is drawn once over the same background: the GIF holds one frame per
+    state, the red tip marker rises frame by frame as the rod is lifted (image rows grow
+    downwards), and the background corner is the same pixel in every frame."""
+    from PIL import Image
+    p, R = twisted_rod(n=5)
+    lifts = [0.0, 0.2, 0.4, 0.6]
+    frames = np.stack([p + [0.0, 0.0, dz] for dz in lifts])
+    path = plotting.animate_rod(frames, tmp_path / "lift.gif", np.stack([R] * len(lifts)),
+                                time=lifts, fps=4)
+    rows, corners = [], []
+    with Image.open(path) as gif:
+        assert gif.n_frames == len(lifts)
+        assert gif.info["duration"] == 250          # ms per frame at 4 frames per second
+        for k in range(gif.n_frames):
+            gif.seek(k)
+            rgb = np.asarray(gif.convert("RGB")).astype(int)
+            red = (rgb[..., 0] > 180) & (rgb[..., 1] < 90) & (rgb[..., 2] < 90)
+            assert red.sum() > 5, f"frame {k}: no tip marker"
+            rows.append(np.nonzero(red)[0].mean())
+            corners.append(tuple(rgb[2, 2]))
+    assert np.all(np.diff(rows) < -3.0), rows
+    assert len(set(corners)) == 1
+
+
 # ------------------------------------------------------------------------- error figures
 
 def test_error_bars_grouped_by_angle():

@@ -34,7 +34,7 @@ from .scheme import DynamicSettings, State
 
 # Steps per chunk (rounded down to whole save blocks): progress is reported this often.
 # Each chunk is one call of the program (~0.5 ms of host work: its ~90 arguments, its
-# outputs); 400 steps make the seed's 300-step scenes one call (sj.run / sj.simulate on
+# outputs); 400 steps make the paper's 300-step scenes one call (sj.run / sj.simulate on
 # the synthetic helical scene 1.14 -> 1.07-1.10 with 200; benchmarks/README.md, "First
 # execution of a program, fewer calls").
 CHUNK_STEPS = 400

@@ -67,7 +67,7 @@ def predicted_increment(v, vd, a, h, memory: NewtonMemory, alpha_m, alpha_f, bet
     Three guesses: zero (the textbook predictor of S60), constant ``vdot_n``, and linear
     extrapolation ``vdot_n + (h / h_n)(vdot_n - vdot_{n-1})``. The one used is the guess
     that would have predicted ``vdot_n`` best from the step before (constant before there
-    is a history). Smooth motions take the extrapolation (seed's synthetic helical scene:
+    is a history). Smooth motions take the extrapolation (the paper's synthetic helical scene:
     residual evaluations in 300 steps with the textbook, constant and extrapolated guess
     1302, 1129 and 932); on stiff ones with oscillating accelerations extrapolation
     overshoots (spring-steel scene: 2423, 2593 and 3087; selected: 2505). The guess

@@ -18,8 +18,8 @@ from ..status import describe
 class StaticSettings:
     """Solver settings. Floats are traced (changing them never recompiles); the integers
     (max_iterations, load_steps, max_attempts, line_search_steps) are static structure.
-    ``level_tolerance=0`` (with ``max_load_step`` left None) is the continuation of
-    before issue 16 (every level to ``tolerance``, at least ``load_steps`` levels).
+    ``level_tolerance=0`` (with ``max_load_step`` left None) solves every level to
+    ``tolerance`` in at least ``load_steps`` levels (the strict continuation).
 
     tolerance: converged when the weighted residual norm is below ``tolerance`` times the
       load scale (forces in N, moments divided by the model's ``char_length``).

@@ -1,4 +1,4 @@
-"""Elastic stress of the Cosserat rod (seed eq. 48, spec S36, S39)."""
+"""Elastic stress of the Cosserat rod (the paper's eq. 48, spec S36, S39)."""
 from .. import element
 
 

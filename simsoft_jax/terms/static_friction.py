@@ -1,5 +1,5 @@
 """Quasi-static friction with rigid obstacles: regularized Coulomb on the slip of each
-contact station since the previous converged load level (load stepping, issue 14).
+contact station since the previous converged load level (load stepping).
 
 A static solve with friction walks the loads up in levels ``lam_0 = 0 < lam_1 < ... <
 lam_m = 1`` (:mod:`simsoft_jax.statics`); between two levels a contact station, the

@@ -1,4 +1,4 @@
-"""Kelvin-Voigt viscous stress (seed eq. 8, spec S40)."""
+"""Kelvin-Voigt viscous stress (the paper's eq. 8, spec S40)."""
 from .. import element
 
 
