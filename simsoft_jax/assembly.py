@@ -167,6 +167,8 @@ def registered_and_tangents(model: Model, lam, R, p, v=None):
     velocities), the derivatives (E,12,12) of the terms that read velocities in the nodal
     velocities (else None). Terms that do not read velocities are differentiated in the
     frames only. None when the model has no registered term."""
+    if not registry.active(model):
+        return None
     dynamic = v is not None
     groups = [(registry.element_parts(model, velocity=False), False)]
     if dynamic:
@@ -463,19 +465,19 @@ def element_blocks(model: Model, lam, R, p, v=None, vd=None, inert=None,
     a = jnp.asarray(s.element_nodes)
     if dynamic:
         ve, vde = element_velocities(model, v, vd)
-        data = element_data(model, inert.maps, inert.masses)
     else:
         ve = vde = jnp.zeros((s.n_elements, 12), p.dtype)
-        data = element_data(model)
     if tangent == "autodiff":
+        data = (element_data(model, inert.maps, inert.masses) if dynamic
+                else element_data(model))
         return Blocks(*jax.vmap(term_tangents.element_tangents(s, lam, dynamic))(
             *element_poses(model, R, p), ve, vde, data))
     d = jax.vmap(element.relative_twist)(R[a], p[a], R[a + 1], p[a + 1])
     if dynamic:
         f, K, C, M = jax.vmap(_dynamic_kernel(model, lam))(
             R[a], d, ve, vde, inert.maps, inert.masses, model.d0, model.length,
-            model.stiffness, data.inertia, model.viscosity, model.distributed_world,
-            model.distributed_local, model.mass_damping)
+            model.stiffness, registry.section_inertia(model), model.viscosity,
+            model.distributed_world, model.distributed_local, model.mass_damping)
     else:
         f, K = jax.vmap(_static_kernel(model, lam))(
             R[a], d, model.d0, model.length, model.stiffness,
@@ -495,24 +497,19 @@ def node_blocks(model: Model, lam, R, v=None, vd=None, dynamic: bool = False,
                 tangent: str = "closed_form") -> Blocks | None:
     """The assembler's node part: :class:`Blocks` (N, ...) of the nodal loads (spec S43)
     and of the attached masses and offset loads (:func:`attachments_and_tangents`); C and
-    M zeros in dynamics, None in statics; None when the scene has no node term."""
+    M None where no node term reads velocities or accelerations (statics, nodal loads
+    only); None when the scene has no node term."""
     s = model.structure
     loads = (nodal_load_and_tangent(model, lam, R, tangent)
              if s.has_nodal_dead or s.has_nodal_follower else None)
     attached = attachments_and_tangents(model, lam, R, v, vd, dynamic)
     if loads is None and attached is None:
         return None
-    n, dtype = s.n_nodes, R.dtype
-    zeros = jnp.zeros((n, 6, 6), dtype)
-    r, K = jnp.zeros((n, 6), dtype), zeros
-    C = M = zeros if dynamic else None
-    if loads is not None:
-        r, K = r + loads[0], K + loads[1]
-    if attached is not None:
-        r, K = r + attached[0], K + attached[1]
-        if dynamic:
-            C, M = C + attached[2], M + attached[3]
-    return Blocks(r, K, C, M)
+    if loads is None:
+        return Blocks(*attached)
+    if attached is None:
+        return Blocks(*loads)
+    return Blocks(loads[0] + attached[0], loads[1] + attached[1], attached[2], attached[3])
 
 
 def residual_vector(model: Model, lam, R, p, v=None, vd=None, inert=None, previous=None):

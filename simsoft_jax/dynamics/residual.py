@@ -74,8 +74,9 @@ def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p,
                                          el.M * beta_p + el.C * gamma_p + K_el)
     nodes = node_blocks(model, 1.0, R, v, vd, dynamic=True, tangent=tangent)
     if nodes is not None:
-        r = r + nodes.r
-        diag = diag + nodes.M * beta_p + nodes.C * gamma_p + nodes.K @ T
+        r, diag = r + nodes.r, diag + nodes.K @ T
+        if nodes.M is not None:
+            diag = diag + nodes.M * beta_p + nodes.C * gamma_p
     if slide is not None:
         C, B, mask = slide
         r, blocks = reduce(C, B, r, (diag, upper, lower))
