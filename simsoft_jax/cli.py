@@ -33,7 +33,24 @@ from pathlib import Path
 import numpy as np
 
 
+def _check_figures(args, kind: str) -> None:
+    """``--plot`` and ``--animate`` checked before solving: suffix, folder, and a dynamic
+    scene for an animation."""
+    from .output import check_figure
+    if args.plot:
+        from matplotlib.backend_bases import FigureCanvasBase
+        check_figure(args.plot, "--plot", tuple(
+            "." + s for s in sorted(FigureCanvasBase.get_supported_filetypes())))
+    if args.animate:
+        check_figure(args.animate, "--animate", (".gif", ".mp4"))
+        if kind != "dynamic":
+            raise ValueError("--animate: needs a dynamic scene (a static result has no "
+                             "motion)")
+
+
 def _run(args) -> int:
+    from ._validate import readable
+    from .built_models import scene_of
     from .output import check_output
     from .results import run
     def progress(t, t_end):
@@ -42,10 +59,12 @@ def _run(args) -> int:
     try:
         if args.output:  # before solving: a bad output path must not cost a solve
             check_output(args.output, force=args.force)
-        result = run(args.scene, progress=None if args.no_progress else progress,
+        scene = scene_of(args.scene)
+        _check_figures(args, scene.solver.kind)
+        result = run(scene, progress=None if args.no_progress else progress,
                      stability=not args.no_stability)
     except (ValueError, NotImplementedError) as err:
-        print(f"error: {err}", file=sys.stderr)
+        print(f"error: {readable(str(err))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("\ninterrupted before any state was computed: nothing written", file=sys.stderr)
@@ -53,12 +72,19 @@ def _run(args) -> int:
     if result.time is not None and not args.no_progress:
         print(file=sys.stderr)  # end the progress line
     if args.output:
+        if result.status == "interrupted":
+            print(f"writing the states computed so far to {args.output} (Ctrl-C again "
+                  "stops the writing)", file=sys.stderr, flush=True)
         try:
             result.save(args.output)
         except OSError as err:
             print(f"error: output: cannot write {args.output!r}: {err.strerror or err} "
                   "(the old file, if any, is unchanged)", file=sys.stderr)
             return 2
+        except KeyboardInterrupt:
+            print(f"\ninterrupted while writing: {args.output} not written (the old file, "
+                  "if any, is unchanged)", file=sys.stderr)
+            return 130
     if result.status == "interrupted":
         print(f"interrupted at t = {result.failed_at:.6g} s; "
               + (f"wrote the states computed so far to {args.output}" if args.output
@@ -94,8 +120,6 @@ def _figures(result, plot, animate):
     import matplotlib.pyplot as plt
     from . import plotting
     rods = [r.name for r in result.model.structure.rods]
-    if animate and result.time is None:
-        raise ValueError("--animate: needs a dynamic scene (a static result has no motion)")
     if plot:
         fig = None
         for k, rod in enumerate(rods):
@@ -119,11 +143,12 @@ def _figures(result, plot, animate):
 
 
 def _validate(args) -> int:
+    from ._validate import readable
     from .scene import load_scene
     try:
         scene = load_scene(args.scene)
     except ValueError as err:
-        print(f"error: {err}", file=sys.stderr)
+        print(f"error: {readable(str(err))}", file=sys.stderr)
         return 2
     rods = ", ".join(f"{r.name} ({r.elements} elements)" for r in scene.rods)
     print(f"{args.scene}: valid {scene.solver.kind} scene; rods: {rods}")
@@ -374,5 +399,23 @@ def main(argv=None) -> int:
     return args.func(args)
 
 
+def console() -> None:
+    """The ``simsoft-jax`` command: :func:`main`, and on Ctrl-C (exit status 130) leave at
+    once (``os._exit`` after flushing the output): a solve or a compile still running
+    inside XLA would otherwise hold the interpreter's exit until it ends, or crash its
+    teardown."""
+    import os
+    try:
+        code = main()
+    except KeyboardInterrupt:     # outside a command's own handling (an import, a figure)
+        print("\ninterrupted", file=sys.stderr)
+        code = 130
+    if code == 130:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(130)
+    sys.exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    console()
