@@ -103,10 +103,10 @@ def _run(args) -> int:
     status = "converged" if result.converged else f"NOT converged: {result.message}"
     detail = (f"{len(result.time)} saved states" if result.time is not None
               else f"residual {result.residual_norm:.3g}")
-    print(f"{result.name or args.scene}: {status}; {result.newton_iterations} Newton iterations, "
-          f"{detail}, solve {result.wall_time_s:.4f} s, "
-          f"compile {result.compile_time_s:.2f} s"
-          + (f"; wrote {args.output}" if args.output else ""))
+    print(readable(f"{result.name or args.scene}: {status}; {result.newton_iterations} "
+                   f"Newton iterations, {detail}, solve {result.wall_time_s:.4f} s, "
+                   f"compile {result.compile_time_s:.2f} s"
+                   + (f"; wrote {args.output}" if args.output else "")))
     if not result.converged:
         print(f"error: {result.message}", file=sys.stderr)
     return 0 if result.converged else 1
@@ -151,7 +151,7 @@ def _validate(args) -> int:
         print(f"error: {readable(str(err))}", file=sys.stderr)
         return 2
     rods = ", ".join(f"{r.name} ({r.elements} elements)" for r in scene.rods)
-    print(f"{args.scene}: valid {scene.solver.kind} scene; rods: {rods}")
+    print(readable(f"{args.scene}: valid {scene.solver.kind} scene; rods: {rods}"))
     return 0
 
 

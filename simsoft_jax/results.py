@@ -8,7 +8,6 @@ JAX's persistent compilation cache, :mod:`.compile_cache`) and returns a
 """
 from __future__ import annotations
 
-import json
 import time
 import warnings
 from pathlib import Path

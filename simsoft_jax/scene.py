@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, fail, index,
-                        integer, join, matrix, number, plain, positive, read_table, readonly,
-                        require, rotation_vector, short_key, string, table, toml_document,
-                        vector)
+from ._validate import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, describe,
+                        fail, index, integer, join, matrix, number, plain, positive,
+                        read_table, readonly, require, rotation_vector, short_key, string,
+                        table, toml_document, vector)
 from .scene_actuators import parse_chambers, parse_tendons
 from .scene_attachments import parse_masses, parse_offset
 from .scene_contact import check_self_contact, parse_contact, parse_obstacles
@@ -447,6 +447,9 @@ def load_scene(path: str | Path) -> Scene:
     except RecursionError:  # the parsers recurse per nesting level
         raise ValueError(f"{path}: nested too deeply to read (a scene may nest tables and "
                          f"arrays at most {MAX_DEPTH} levels deep)") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: must hold a scene table (an object of keys), got "
+                         f"{describe(data)}")
     scene = Scene.from_dict(data, base_dir=path.parent)
     return dataclasses.replace(scene, source=str(path))
 

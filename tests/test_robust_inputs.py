@@ -247,6 +247,10 @@ def test_control_characters_in_names_are_escaped(tmp_path, capsys, name):
     assert main(["validate", str(path)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and not any(c in err[:-1] for c in "\x00\x1b\u2028\r\n")
+    path.write_text(json.dumps(static(rods=[rod(name)], constraints=[clamp(name)])))
+    assert main(["validate", str(path)]) == 0             # a valid scene: its summary line
+    out = capsys.readouterr().out
+    assert out.count("\n") == 1 and not any(c in out[:-1] for c in "\x00\x1b\u2028\r\n")
 
 
 # ---------------------------------------------------------------- the command line
