@@ -40,20 +40,24 @@ def unheld_rods(rods, constraints, frames_of) -> dict:
     return out
 
 
-def _check_initial_frames(rods) -> None:
-    """Refuse initial points whose polyline folds back on itself (no tangent at a node:
-    its start frame would not be finite)."""
+def _started_frames(rods) -> dict:
+    """``{rod name: (R, p)}``: the full start frames (world) of the rods (RodSpecs, scene
+    order) that start from ``initial`` points; initial points whose polyline folds back
+    on itself (no tangent at a node: its frame would not be finite) are refused."""
+    out = {}
     for i, rod in enumerate(rods):
-        if rod.initial_points is None or rod.initial_rotations is not None:
+        if rod.initial_points is None:
             continue
         with np.errstate(invalid="ignore", divide="ignore"):   # reported below
-            R, _ = initial_frames(rod, *world_frames(rod))
+            R, p = initial_frames(rod, *world_frames(rod))
         bad = np.flatnonzero(~np.isfinite(R).all(axis=(1, 2)))
         if len(bad):
             fail(join(index("rods", i), "initial.points"), f"fold back on themselves: node "
                  f"{bad[0]} of rod {rod.name!r} has no tangent (the points before and "
                  "after it along the rod coincide); give points that do not turn back, or "
                  "initial.rotations with one point per node")
+        out[rod.name] = (R, p)
+    return out
 
 
 def _apart(a: np.ndarray, b: np.ndarray) -> float:
@@ -113,16 +117,14 @@ def check_start(scene) -> None:
     first failure raises the one ValueError. Scene reading runs it, and
     :func:`~simsoft_jax.model.build_model` again (``Scene.replace`` does not validate)."""
     rods = {rod.name: rod for rod in scene.rods}
-    constraints, joints = scene.constraints, scene.joints
-    check_contact_radius(scene.rods, scene.contact, bool(scene.obstacles))
-    _check_initial_frames(scene.rods)
-    started = {}     # full start frames of the rods that start from initial points
+    constraints, joints = scene.constraints, getattr(scene, "joints", ())
+    check_contact_radius(scene.rods, getattr(scene, "contact", None),
+                         bool(getattr(scene, "obstacles", ())))
+    started = _started_frames(scene.rods)
 
     def frames_of(rod, nodes):
-        if rod.initial_points is None:
+        if rod.name not in started:   # the stress-free shape: those nodes only
             return stress_free_frames(rod, nodes)
-        if rod.name not in started:
-            started[rod.name] = initial_frames(rod, *world_frames(rod))
         R, p = started[rod.name]
         return {k: (R[k], p[k]) for k in nodes}
 
@@ -131,5 +133,5 @@ def check_start(scene) -> None:
         for name, message in unheld_rods(rods.values(), constraints, frames_of).items():
             if name not in jointed:   # a rod with joints may be held through them
                 raise ValueError(message)
-    _check_joints(rods, scene.bodies, joints, constraints, frames_of)
-    _check_crossings(rods, scene.tendons, frames_of)
+    _check_joints(rods, getattr(scene, "bodies", ()), joints, constraints, frames_of)
+    _check_crossings(rods, getattr(scene, "tendons", ()), frames_of)
