@@ -1,8 +1,10 @@
 """Command line: ``simsoft-jax run | validate | princeton | calibrate | predict | bench``.
 
 * ``run SCENE -o OUT.json|.npz [--force] [--no-stability] [--no-progress] [--plot F.png]
-  [--animate F.gif]``: solve a scene (exit 1 if not converged, 2 if the scene or the
-  output path is invalid, 130 on Ctrl-C, after writing the states computed so far),
+  [--animate F.gif]``: solve a scene (exit 1 if not converged, 2 if the scene or an
+  output or figure path is invalid, 130 on Ctrl-C: at once during a compile or a static
+  solve, after writing the states computed so far in a dynamic run, a second Ctrl-C
+  stopping that writing),
   with a progress line on stderr for dynamic runs and a warning for an unstable static
   equilibrium; prints the compile and the solve time separately;
 * ``validate SCENE``: check a scene file without solving it;

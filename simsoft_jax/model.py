@@ -31,9 +31,9 @@ from .joint_layout import layout as joint_layout
 from .loads import LoadChannels, TimeLaws, build_channels, build_laws
 from .scene_contact import QUADRATURE_POINTS, contact_tables, motion_profiles
 from .scene_mechanisms import jointed_rods
+from .scene_start import check_start, unheld_rods
 from .sections import inertia_diagonal, stiffness_diagonal, viscosity_diagonal
 from .start_frames import initial_frames, world_frames
-from .scene_start import check_start, unheld_rods
 from .supports import AXES
 
 
@@ -407,7 +407,9 @@ def build_model(scene, device: bool = True) -> Model:
     ``channels``; the scene's ``[solver].inertia`` chooses the element inertia (static).
     ``device``: the arrays on the default device (one batched transfer); False keeps them
     NumPy float64 arrays, which a compiled program transfers when it is called (cheaper
-    for a model solved once, as :func:`simsoft_jax.run` does).
+    for a model solved once, as :func:`simsoft_jax.run` does). The checks of the start
+    state (:func:`~simsoft_jax.scene_start.check_start`) run again: a scene made by
+    ``Scene.replace`` was not validated.
     """
     check_start(scene)
     rods, elem_nodes = [], []
