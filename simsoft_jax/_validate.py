@@ -45,7 +45,8 @@ def fail(path: str, message: str) -> None:
 
 
 MAX_MESSAGE = 2000   # characters of an error message
-MAX_WORD = 200       # a run of more non-blank characters is cut (a name, a number)
+MAX_WORD = 1000      # a run of more non-blank characters is cut (a name, a number)
+WORD_ECHO = 100      # characters kept of such a run
 _CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]")
 _LONG_WORD = re.compile(r"\S{%d,}" % (MAX_WORD + 1))
 
@@ -53,11 +54,11 @@ _LONG_WORD = re.compile(r"\S{%d,}" % (MAX_WORD + 1))
 def readable(text: str) -> str:
     """``text`` safe to print as one line: control characters (newline, NUL, escape...)
     written as their escapes (``\\n``, ``\\x00``), every run of more than MAX_WORD
-    non-blank characters cut to its first MAX_KEY_ECHO + "...", and the whole cut to
+    non-blank characters cut to its first WORD_ECHO + "...", and the whole cut to
     MAX_MESSAGE characters + "..." (a scene cannot print a line of its own, nor
     megabytes of a name)."""
     text = _CONTROL.sub(lambda m: m.group().encode("unicode_escape").decode("ascii"), text)
-    text = _LONG_WORD.sub(lambda m: m.group()[:MAX_KEY_ECHO] + "...", text)
+    text = _LONG_WORD.sub(lambda m: m.group()[:WORD_ECHO] + "...", text)
     return text if len(text) <= MAX_MESSAGE else text[:MAX_MESSAGE] + "..."
 
 
@@ -318,8 +319,9 @@ def prefixed(path: str, keys: Iterable[str] = ()) -> Iterator[None]:
         message = str(err)
         match = _ARG_PREFIX.match(message)
         if match and match.group(1) in set(keys):
-            raise ValueError(f"{join(path, match.group(1))}: {match.group(2)}") from None
-        raise ValueError(f"{path}: {message}") from None
+            raise ValueError(readable(f"{join(path, match.group(1))}: {match.group(2)}")) \
+                from None
+        raise ValueError(readable(f"{path}: {message}")) from None
 
 
 def readonly(array: np.ndarray | None) -> np.ndarray | None:

@@ -21,8 +21,8 @@ import numpy as np
 
 from ._validate import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, describe,
                         fail, index, integer, join, matrix, number, plain, positive,
-                        read_table, readonly, require, rotation_vector, short_key, string,
-                        table, toml_document, vector)
+                        read_table, readable, readonly, require, rotation_vector, short_key,
+                        string, table, toml_document, vector)
 from .scene_actuators import parse_chambers, parse_tendons
 from .scene_attachments import parse_masses, parse_offset
 from .scene_contact import check_self_contact, parse_contact, parse_obstacles
@@ -427,8 +427,8 @@ def load_scene(path: str | Path) -> Scene:
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in (".toml", ".json"):
-        raise ValueError(f"{path}: unsupported scene file type {path.suffix!r} "
-                         "(use .toml or .json)")
+        raise ValueError(readable(f"{path}: unsupported scene file type {path.suffix!r} "
+                                  "(use .toml or .json)"))
     try:
         if suffix == ".json":
             with open(path, encoding="utf-8") as fh:
@@ -441,15 +441,17 @@ def load_scene(path: str | Path) -> Scene:
             with open(path, "rb") as fh:
                 data = tomllib.load(fh)
     except OSError as err:
-        raise ValueError(f"{path}: cannot read scene file: {err.strerror or err}") from None
+        raise ValueError(readable(f"{path}: cannot read scene file: "
+                                  f"{err.strerror or err}")) from None
     except ValueError as err:  # JSONDecodeError and TOMLDecodeError are ValueErrors
-        raise ValueError(f"{path}: not valid {suffix[1:].upper()}: {err}") from None
+        raise ValueError(readable(f"{path}: not valid {suffix[1:].upper()}: {err}")) from None
     except RecursionError:  # the parsers recurse per nesting level
-        raise ValueError(f"{path}: nested too deeply to read (a scene may nest tables and "
-                         f"arrays at most {MAX_DEPTH} levels deep)") from None
+        raise ValueError(readable(f"{path}: nested too deeply to read (a scene may nest "
+                                  f"tables and arrays at most {MAX_DEPTH} levels deep)")) \
+            from None
     if not isinstance(data, dict):
-        raise ValueError(f"{path}: must hold a scene table (an object of keys), got "
-                         f"{describe(data)}")
+        raise ValueError(readable(f"{path}: must hold a scene table (an object of keys), "
+                                  f"got {describe(data)}"))
     scene = Scene.from_dict(data, base_dir=path.parent)
     return dataclasses.replace(scene, source=str(path))
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validate import fail, index, join
+from ._validate import fail, index, join, readable
 from .actuator_tables import routing_at
 from .scene_contact import check_contact_radius
 from .scene_mechanisms import jointed_rods
@@ -132,6 +132,6 @@ def check_start(scene) -> None:
         jointed = jointed_rods(joints)
         for name, message in unheld_rods(rods.values(), constraints, frames_of).items():
             if name not in jointed:   # a rod with joints may be held through them
-                raise ValueError(message)
+                raise ValueError(readable(message))
     _check_joints(rods, getattr(scene, "bodies", ()), joints, constraints, frames_of)
     _check_crossings(rods, getattr(scene, "tendons", ()), frames_of)

@@ -340,3 +340,13 @@ def test_damaged_zip_member_is_named(tmp_path):
     with pytest.raises(ValueError, match=r"^rods\[0\]\.initial\.result: old\.npz: not a "
                                          r"readable result file"):
         sj.Scene.from_dict(restart_scene(good))
+
+
+def test_a_long_file_path_is_named_in_full(tmp_path):
+    """Only runs of more than 1000 non-blank characters are cut: a 300-character path
+    to a missing scene file is named whole."""
+    path = tmp_path / ("d" * 120) / ("s" * 120 + ".json")
+    assert len(str(path)) > 240
+    with pytest.raises(ValueError) as err:
+        sj.load_scene(path)
+    assert str(err.value).startswith(f"{path}: cannot read scene file: ")
