@@ -1,6 +1,7 @@
-"""Safe result files: the output path is checked before a solve, files are written
-atomically (a temporary file in the same folder, then renamed over the target), and JSON
-holds no NaN or Infinity tokens (non-finite numbers are written as ``null``).
+"""Safe result files: the output and figure paths are checked before a solve, files are
+written atomically (a temporary file in the same folder, then renamed over the target)
+with the permissions of any new file, and JSON, written piece by piece, holds no NaN or
+Infinity tokens (non-finite numbers are written as ``null``).
 
 Plain Python + NumPy (no JAX).
 """
