@@ -162,9 +162,9 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
                      "use a clamp at the driven pose (base or initial), or solver.kind = "
                      "\"dynamic\"")
     scene = Scene(name=name, solver=solver, gravity=gravity, rods=tuple(rods.values()),
-                 constraints=constraints, loads=loads, initial_velocity=velocities,
-                 source=None, raw=raw, masses=masses, bodies=bodies, joints=joints,
-                 tendons=tendons, chambers=chambers, obstacles=obstacles, contact=contact)
+                  constraints=constraints, loads=loads, initial_velocity=velocities,
+                  source=None, raw=raw, masses=masses, bodies=bodies, joints=joints,
+                  tendons=tendons, chambers=chambers, obstacles=obstacles, contact=contact)
     check_start(scene)
     return scene
 
