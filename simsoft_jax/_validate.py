@@ -24,7 +24,7 @@ __all__ = [
     "number", "positive", "integer", "string", "choice", "vector", "matrix",
     "rotation_vector", "rotation_matrix", "rodrigues", "proper_rotations", "prefixed",
     "readonly", "short_key", "check_depth", "MAX_DEPTH",
-    "SpecBase", "same", "read_table", "toml_document", "FILES_READ", "note_read",
+    "SpecBase", "same", "read_table", "toml_document", "FILES_READ", "note_read", "readable",
 ]
 
 # The files a scene's parsing reads besides the scene file itself (tables, result files),
@@ -40,8 +40,26 @@ def note_read(file: Path) -> None:
 
 
 def fail(path: str, message: str) -> None:
-    """Raise the one error a bad input produces."""
-    raise ValueError(f"{path}: {message}" if path else message)
+    """Raise the one error a bad input produces (its text :func:`readable`)."""
+    raise ValueError(readable(f"{path}: {message}" if path else message))
+
+
+MAX_MESSAGE = 2000   # characters of an error message
+MAX_WORD = 1000      # a run of more non-blank characters is cut (a name, a number)
+WORD_ECHO = 100      # characters kept of such a run
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]")
+_LONG_WORD = re.compile(r"\S{%d,}" % (MAX_WORD + 1))
+
+
+def readable(text: str) -> str:
+    """``text`` safe to print as one line: control characters (newline, NUL, escape...)
+    written as their escapes (``\\n``, ``\\x00``), every run of more than MAX_WORD
+    non-blank characters cut to its first WORD_ECHO + "...", and the whole cut to
+    MAX_MESSAGE characters + "..." (a scene cannot print a line of its own, nor
+    megabytes of a name)."""
+    text = _CONTROL.sub(lambda m: m.group().encode("unicode_escape").decode("ascii"), text)
+    text = _LONG_WORD.sub(lambda m: m.group()[:WORD_ECHO] + "...", text)
+    return text if len(text) <= MAX_MESSAGE else text[:MAX_MESSAGE] + "..."
 
 
 MAX_DEPTH = 64       # nesting levels (tables and arrays) a scene may have
@@ -146,9 +164,12 @@ def number(value: Any, path: str) -> float:
     """A finite real number (bool is not a number here)."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         fail(path, f"must be a number, got {describe(value)}")
-    out = float(value)
+    try:
+        out = float(value)
+    except OverflowError:   # an int beyond the float range (JSON allows any digits)
+        out = math.inf
     if not math.isfinite(out):
-        fail(path, f"must be finite, got {value}")
+        fail(path, f"must be finite, got {short_key(value)}")
     return out
 
 
@@ -159,13 +180,16 @@ def positive(value: Any, path: str) -> float:
     return out
 
 
-def integer(value: Any, path: str, minimum: int | None = None) -> int:
-    """An int (not bool, not float) with an optional lower bound."""
+def integer(value: Any, path: str, minimum: int | None = None,
+            maximum: int | None = None) -> int:
+    """An int (not bool, not float) with optional bounds."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         fail(path, f"must be an integer, got {describe(value)}")
     out = int(value)
     if minimum is not None and out < minimum:
-        fail(path, f"must be >= {minimum}, got {out}")
+        fail(path, f"must be >= {minimum}, got {short_key(out)}")
+    if maximum is not None and out > maximum:
+        fail(path, f"must be <= {maximum}, got {short_key(out)}")
     return out
 
 
@@ -295,8 +319,9 @@ def prefixed(path: str, keys: Iterable[str] = ()) -> Iterator[None]:
         message = str(err)
         match = _ARG_PREFIX.match(message)
         if match and match.group(1) in set(keys):
-            raise ValueError(f"{join(path, match.group(1))}: {match.group(2)}") from None
-        raise ValueError(f"{path}: {message}") from None
+            raise ValueError(readable(f"{join(path, match.group(1))}: {match.group(2)}")) \
+                from None
+        raise ValueError(readable(f"{path}: {message}")) from None
 
 
 def readonly(array: np.ndarray | None) -> np.ndarray | None:
@@ -343,9 +368,12 @@ def read_table(value: Any, path: str, base_dir: Path) -> tuple[np.ndarray, np.nd
     name = string(value, path)
     file = Path(name) if Path(name).is_absolute() else base_dir / name
     try:
-        text = file.read_text()
+        text = file.read_text(encoding="utf-8")
     except OSError as err:
         fail(path, f"cannot read {str(file)!r}: {err.strerror or err}")
+    except UnicodeDecodeError as err:
+        fail(path, f"{str(file)!r} is not a text file (byte {err.start} is not UTF-8); "
+             "a table file holds two columns of numbers (t, scale)")
     note_read(file)
     rows: list[tuple[float, float]] = []
     first = True

@@ -74,32 +74,6 @@ def _node_arcs(scene):
     return {rod.name: rod.node_arc() for rod in scene.rods}
 
 
-def check_crossings(scene, rods, R0, p0):
-    """Refuse a tendon whose routing points on the two sides of a weld it crosses are
-    apart in the start frames ``R0`` (N,3,3), ``p0`` (N,3) (m) by more than 1e-9 of the
-    scene's size: the weld then keeps them together, so the tendon's bridge across the
-    weld has zero length at every solution (the model of
-    :mod:`simsoft_jax.terms.tendons` sums the tendon's parts inside the rods only)."""
-    arcs = _node_arcs(scene)
-    scale = max(np.abs(p0).max(), 1.0)
-
-    def point(part, node):
-        offset, _ = routing_at(part.routing, np.array(arcs[part.rod][node]))
-        k = rods[part.rod].first_node + node
-        return p0[k] + R0[k] @ np.array([0.0, *offset])
-
-    for m, t in enumerate(getattr(scene, "tendons", ())):
-        for before, after, (joint, node_a, node_b) in zip(t.parts, t.parts[1:], t.crossings):
-            gap = np.linalg.norm(point(before, node_a) - point(after, node_b))
-            if gap > 1e-9 * scale:
-                raise ValueError(
-                    f"tendons[{m}]: tendon {t.name!r} crosses the weld joints[{joint}] "
-                    f"from rod {before.rod!r} (node {node_a}) to rod {after.rod!r} (node "
-                    f"{node_b}), but its routing points there are {gap:.3g} m apart at the "
-                    "start; they must meet (offset, rod_offsets), the weld then holds them "
-                    "together")
-
-
 def tendon_arrays(scene, rods, n_elements):
     """``(static, arrays)``: static structure (names, membership, quadrature size,
     displacement-controlled flags) and the tendon arrays of the Model: tension (M,),

@@ -1,8 +1,10 @@
 """Command line: ``simsoft-jax run | validate | princeton | calibrate | predict | bench``.
 
 * ``run SCENE -o OUT.json|.npz [--force] [--no-stability] [--no-progress] [--plot F.png]
-  [--animate F.gif]``: solve a scene (exit 1 if not converged, 2 if the scene or the
-  output path is invalid, 130 on Ctrl-C, after writing the states computed so far),
+  [--animate F.gif]``: solve a scene (exit 1 if not converged, 2 if the scene or an
+  output or figure path is invalid, 130 on Ctrl-C: at once during a compile or a static
+  solve, after writing the states computed so far in a dynamic run, a second Ctrl-C
+  stopping that writing),
   with a progress line on stderr for dynamic runs and a warning for an unstable static
   equilibrium; prints the compile and the solve time separately;
 * ``validate SCENE``: check a scene file without solving it;
@@ -36,7 +38,24 @@ from pathlib import Path
 import numpy as np
 
 
+def _check_figures(args, kind: str) -> None:
+    """``--plot`` and ``--animate`` checked before solving: suffix, folder, and a dynamic
+    scene for an animation."""
+    from .output import check_figure
+    if args.plot:
+        from matplotlib.backend_bases import FigureCanvasBase
+        check_figure(args.plot, "--plot", tuple(
+            "." + s for s in sorted(FigureCanvasBase.get_supported_filetypes())))
+    if args.animate:
+        check_figure(args.animate, "--animate", (".gif", ".mp4"))
+        if kind != "dynamic":
+            raise ValueError("--animate: needs a dynamic scene (a static result has no "
+                             "motion)")
+
+
 def _run(args) -> int:
+    from ._validate import readable
+    from .built_models import scene_of
     from .output import check_output
     from .results import run
     def progress(t, t_end):
@@ -45,10 +64,12 @@ def _run(args) -> int:
     try:
         if args.output:  # before solving: a bad output path must not cost a solve
             check_output(args.output, force=args.force)
-        result = run(args.scene, progress=None if args.no_progress else progress,
+        scene = scene_of(args.scene)
+        _check_figures(args, scene.solver.kind)
+        result = run(scene, progress=None if args.no_progress else progress,
                      stability=not args.no_stability)
     except (ValueError, NotImplementedError) as err:
-        print(f"error: {err}", file=sys.stderr)
+        print(f"error: {readable(str(err))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("\ninterrupted before any state was computed: nothing written", file=sys.stderr)
@@ -56,12 +77,19 @@ def _run(args) -> int:
     if result.time is not None and not args.no_progress:
         print(file=sys.stderr)  # end the progress line
     if args.output:
+        if result.status == "interrupted":
+            print(f"writing the states computed so far to {args.output} (Ctrl-C again "
+                  "stops the writing)", file=sys.stderr, flush=True)
         try:
             result.save(args.output)
         except OSError as err:
             print(f"error: output: cannot write {args.output!r}: {err.strerror or err} "
                   "(the old file, if any, is unchanged)", file=sys.stderr)
             return 2
+        except KeyboardInterrupt:
+            print(f"\ninterrupted while writing: {args.output} not written (the old file, "
+                  "if any, is unchanged)", file=sys.stderr)
+            return 130
     if result.status == "interrupted":
         print(f"interrupted at t = {result.failed_at:.6g} s; "
               + (f"wrote the states computed so far to {args.output}" if args.output
@@ -80,10 +108,10 @@ def _run(args) -> int:
     status = "converged" if result.converged else f"NOT converged: {result.message}"
     detail = (f"{len(result.time)} saved states" if result.time is not None
               else f"residual {result.residual_norm:.3g}")
-    print(f"{result.name or args.scene}: {status}; {result.newton_iterations} Newton iterations, "
-          f"{detail}, solve {result.wall_time_s:.4f} s, "
-          f"compile {result.compile_time_s:.2f} s"
-          + (f"; wrote {args.output}" if args.output else ""))
+    print(readable(f"{result.name or args.scene}: {status}; {result.newton_iterations} "
+                   f"Newton iterations, {detail}, solve {result.wall_time_s:.4f} s, "
+                   f"compile {result.compile_time_s:.2f} s"
+                   + (f"; wrote {args.output}" if args.output else "")))
     if not result.converged:
         print(f"error: {result.message}", file=sys.stderr)
     return 0 if result.converged else 1
@@ -97,8 +125,6 @@ def _figures(result, plot, animate):
     import matplotlib.pyplot as plt
     from . import plotting
     rods = [r.name for r in result.model.structure.rods]
-    if animate and result.time is None:
-        raise ValueError("--animate: needs a dynamic scene (a static result has no motion)")
     if plot:
         fig = None
         for k, rod in enumerate(rods):
@@ -122,14 +148,15 @@ def _figures(result, plot, animate):
 
 
 def _validate(args) -> int:
+    from ._validate import readable
     from .scene import load_scene
     try:
         scene = load_scene(args.scene)
     except ValueError as err:
-        print(f"error: {err}", file=sys.stderr)
+        print(f"error: {readable(str(err))}", file=sys.stderr)
         return 2
     rods = ", ".join(f"{r.name} ({r.elements} elements)" for r in scene.rods)
-    print(f"{args.scene}: valid {scene.solver.kind} scene; rods: {rods}")
+    print(readable(f"{args.scene}: valid {scene.solver.kind} scene; rods: {rods}"))
     return 0
 
 
@@ -385,5 +412,23 @@ def main(argv=None) -> int:
     return args.func(args)
 
 
+def console() -> None:
+    """The ``simsoft-jax`` command: :func:`main`, and on Ctrl-C (exit status 130) leave at
+    once (``os._exit`` after flushing the output): a solve or a compile still running
+    inside XLA would otherwise hold the interpreter's exit until it ends, or crash its
+    teardown."""
+    import os
+    try:
+        code = main()
+    except KeyboardInterrupt:     # outside a command's own handling (an import, a figure)
+        print("\ninterrupted", file=sys.stderr)
+        code = 130
+    if code == 130:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(130)
+    sys.exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    console()

@@ -14,7 +14,8 @@ have their own lengths). Local x is the centreline tangent.
     ``a/(a^2+b^2)`` about local z and torsion ``b/(a^2+b^2)`` about local x; the rod
     starts along local x, curving toward local +y; the helix axis is the direction
     ``(torsion, 0, curvature)`` of the base frame.
-* start states (``initial.points``, see ``model._initial_frames``): as many points as
+* start states (``initial.points``, see
+  :func:`simsoft_jax.start_frames.initial_frames`): as many points as
   nodes are the nodes themselves; each stress-free frame is turned by the smallest
   rotation onto the chord ``p[i+1] - p[i-1]`` (:func:`chord_tangents`,
   :func:`aligned_frames`);

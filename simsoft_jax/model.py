@@ -26,14 +26,16 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import geometry as geom
-from .actuator_tables import chamber_arrays, check_crossings, tendon_arrays
+from .actuator_tables import chamber_arrays, tendon_arrays
 from .field_tables import fluid_part, magnetic_part
 from .joint_layout import layout as joint_layout
 from .loads import LoadChannels, TimeLaws, build_channels, build_laws
 from .scene_contact import QUADRATURE_POINTS, contact_tables, motion_profiles
 from .scene_mechanisms import jointed_rods
+from .scene_start import check_start, unheld_rods
 from .sections import inertia_diagonal, stiffness_diagonal, viscosity_diagonal
-from .supports import AXES, unheld_message
+from .start_frames import initial_frames, world_frames
+from .supports import AXES
 
 
 class RodInfo(NamedTuple):
@@ -339,36 +341,6 @@ def _section_table(pieces):
     return np.concatenate([np.tile(K, (n, 1)) for K, n in pieces]), False
 
 
-def _world_frames(rod):
-    """Stress-free frames of a rod in world coordinates: (n+1,3,3), (n+1,3)."""
-    R, p = geom.reference_frames(rod.geometry, rod.node_fractions())
-    Rb, pb = np.asarray(rod.base_rotation, float), np.asarray(rod.base_position, float)
-    return np.einsum("ij,njk->nik", Rb, R), pb + p @ Rb.T
-
-
-def _initial_frames(rod, R_ref, p_ref):
-    """Start configuration: the stress-free shape, or ``initial.points`` (base frame).
-
-    As many points as nodes: the node positions exactly, turned by ``initial.rotations``
-    (base frame) when given, else each stress-free frame turned by the smallest rotation
-    onto the points' chord tangent (a straight rod stretched along itself keeps its
-    reference rotations exactly). Any other count: a polyline, its nodes at the rod's
-    node fractions of its arc length.
-    """
-    if rod.initial_points is None:
-        return R_ref, p_ref
-    Rb, pb = np.asarray(rod.base_rotation, float), np.asarray(rod.base_position, float)
-    points = np.asarray(rod.initial_points, float)
-    if len(points) == len(R_ref):
-        if getattr(rod, "initial_rotations", None) is not None:
-            R = np.einsum("ij,njk->nik", Rb, np.asarray(rod.initial_rotations, float))
-        else:
-            R = geom.aligned_frames(R_ref, geom.chord_tangents(points) @ Rb.T)
-        return R, pb + points @ Rb.T
-    R, p = geom.polyline_frames(points, rod.node_fractions(), start_rotation=Rb.T @ R_ref[0])
-    return np.einsum("ij,njk->nik", Rb, R), pb + p @ Rb.T
-
-
 def _reference_twists(R, p):
     """``d0_e = log(H_e^-1 H_e+1)`` for consecutive frames (spec S34), (n,6): NumPy
     (:func:`~simsoft_jax.geometry.log_se3_np`), no compiled program."""
@@ -377,26 +349,19 @@ def _reference_twists(R, p):
     return geom.log_se3_np(Rt @ R[1:], np.einsum("nij,nj->ni", Rt, p[1:] - p[:-1]))
 
 
-def _check_held(scene, frames, rods) -> set:
-    """A static scene needs every rod held against rigid motion: the rigid motions its
-    clamps, pins, hinges and drives leave free (:mod:`~simsoft_jax.supports`, at the
-    start configuration ``frames = (R0, p0)``) must be none; else a ValueError says which
-    motion is free and how to restrain it. A rod with joints may be held through them:
-    the names of those its own supports do not hold are returned (a mechanism left free
-    fails the solve, with a status)."""
+def _held_by_joints(scene, frames, rods) -> set:
+    """Names of the rods of a static scene that only their joints hold against rigid
+    motion (the others are held by their own supports: checked while the scene is read,
+    :mod:`simsoft_jax.scene_start`); ``frames = (R0, p0)`` the start frames (N,3,3),
+    (N,3). A mechanism left free fails the solve, with a status."""
     R0, p0 = frames
-    jointed = jointed_rods(getattr(scene, "joints", ()))
-    held_by_joints = set()
-    for i, rod in enumerate(scene.rods):
-        held = [c for c in scene.constraints if c.rod == rod.name]
+
+    def frames_of(rod, nodes):
         first = rods[rod.name].first_node
-        at = {c.node: (R0[first + c.node], p0[first + c.node]) for c in held}
-        message = unheld_message(rod.name, i, held, at, rod.geometry.arc_length)
-        if message and rod.name in jointed:
-            held_by_joints.add(rod.name)
-        elif message:
-            raise ValueError(message)
-    return held_by_joints
+        return {k: (R0[first + k], p0[first + k]) for k in nodes}
+
+    return set(unheld_rods(scene.rods, scene.constraints, frames_of)) & jointed_rods(
+        getattr(scene, "joints", ()))
 
 
 def _initial_velocities(scene, rods, R0, p0):
@@ -448,14 +413,17 @@ def build_model(scene, device: bool = True) -> Model:
     ``channels``; the scene's ``[solver].inertia`` chooses the element inertia (static).
     ``device``: the arrays on the default device (one batched transfer); False keeps them
     NumPy float64 arrays, which a compiled program transfers when it is called (cheaper
-    for a model solved once, as :func:`simsoft_jax.run` does).
+    for a model solved once, as :func:`simsoft_jax.run` does). The checks of the start
+    state (:func:`~simsoft_jax.scene_start.check_start`) run again: a scene made by
+    ``Scene.replace`` was not validated.
     """
+    check_start(scene)
     rods, elem_nodes = [], []
     R0, p0, d0, K, M, V, C = [], [], [], [], [], [], []
     node_offset = element_offset = 0
     for rod in scene.rods:
-        R_ref, p_ref = _world_frames(rod)
-        R_init, p_init = _initial_frames(rod, R_ref, p_ref)
+        R_ref, p_ref = world_frames(rod)
+        R_init, p_init = initial_frames(rod, R_ref, p_ref)
         d0.append(_reference_twists(R_ref, p_ref))
         for piece in (rod.segments or (rod,)):
             Kr, Mr, Vr = _rod_constants(piece)
@@ -473,7 +441,7 @@ def build_model(scene, device: bool = True) -> Model:
         element_offset += rod.elements
     by_name = {r.name: r for r in rods}
     R0, p0 = np.concatenate(R0), np.concatenate(p0)
-    held_by_joints = (_check_held(scene, (R0, p0), by_name)
+    held_by_joints = (_held_by_joints(scene, (R0, p0), by_name)
                       if scene.solver.kind == "static" else set())
     joints = joint_layout(scene, by_name, R0, p0, held_by_joints)
     R0, p0 = np.concatenate([R0, joints.R]), np.concatenate([p0, joints.p])
@@ -525,7 +493,6 @@ def build_model(scene, device: bool = True) -> Model:
     for load in loads:
         if load.element is not None:
             point_xi[by_name[load.rod].first_element + load.element] = load.xi
-    check_crossings(scene, by_name, R0, p0)
     tendons, tendon_data = tendon_arrays(scene, by_name, n_elements)
     chambers, chamber_data = chamber_arrays(scene, by_name, n_elements)
     at_node = [ld for ld in loads if ld.kind != "distributed_force" and ld.element is None]

@@ -1,11 +1,13 @@
-"""Safe result files: the output path is checked before a solve, files are written
-atomically (a temporary file in the same folder, then renamed over the target), and JSON
-holds no NaN or Infinity tokens (non-finite numbers are written as ``null``).
+"""Safe result files: the output and figure paths are checked before a solve, files are
+written atomically (a temporary file in the same folder, then renamed over the target)
+with the permissions of any new file, and JSON, written piece by piece, holds no NaN or
+Infinity tokens (non-finite numbers are written as ``null``).
 
 Plain Python + NumPy (no JAX).
 """
 from __future__ import annotations
 
+import json
 import math
 import os
 import tempfile
@@ -15,6 +17,29 @@ from typing import Any, Callable
 import numpy as np
 
 SUFFIXES = (".json", ".npz")
+
+
+def check_figure(path, option: str, suffixes) -> Path:
+    """Check before a solve that a figure can be written to ``path``: its suffix is one
+    of ``suffixes`` and its folder exists and is writable; a ``ValueError`` starting with
+    ``option`` (``--plot``, ``--animate``) otherwise. An existing file is replaced."""
+    path = Path(path)
+    if path.suffix not in suffixes:
+        raise ValueError(f"{option}: unsupported suffix {path.suffix!r} of {str(path)!r} "
+                         f"(use {', '.join(suffixes)})")
+    _check_folder(path, option)
+    return path
+
+
+def _check_folder(path: Path, option: str) -> None:
+    """The folder of ``path`` exists and is writable, and ``path`` is not a folder."""
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise ValueError(f"{option}: folder {str(folder)!r} does not exist")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise ValueError(f"{option}: folder {str(folder)!r} is not writable")
+    if path.is_dir():
+        raise ValueError(f"{option}: {str(path)!r} is a folder")
 
 
 def check_output(path, force: bool = False) -> Path:
@@ -28,13 +53,7 @@ def check_output(path, force: bool = False) -> Path:
     if path.suffix not in SUFFIXES:
         raise ValueError(f"output: unsupported suffix {path.suffix!r} of {str(path)!r} "
                          "(use .json or .npz)")
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise ValueError(f"output: folder {str(folder)!r} does not exist")
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise ValueError(f"output: folder {str(folder)!r} is not writable")
-    if path.is_dir():
-        raise ValueError(f"output: {str(path)!r} is a folder")
+    _check_folder(path, "output")
     if path.exists() and not force:
         raise ValueError(f"output: {str(path)!r} exists; pass --force to replace it")
     return path
@@ -44,12 +63,14 @@ def write_atomic(path, write: Callable[[Any], None], binary: bool = False) -> Pa
     """Call ``write(fh)`` on a temporary file beside ``path``, then rename it to ``path``.
 
     If ``write`` raises (a full disk, an interrupt, a bug), the temporary file is removed
-    and ``path`` keeps its old content (or stays absent); the error propagates.
+    and ``path`` keeps its old content (or stays absent); the error propagates. The file
+    gets the permissions of any new file, ``0666`` less the umask (as ``open`` gives).
     """
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
     try:
+        os.chmod(tmp, 0o666 & ~_umask())   # mkstemp makes it owner-only
         with os.fdopen(fd, "wb" if binary else "w",
                        **({} if binary else {"encoding": "utf-8"})) as fh:
             write(fh)
@@ -63,6 +84,67 @@ def write_atomic(path, write: Callable[[Any], None], binary: bool = False) -> Pa
             pass
         raise
     return path
+
+
+STREAM_DEPTH = 4     # levels of nesting below which long lists are written item by item
+STREAM_ITEMS = 64    # a list with more items than this is written item by item
+
+
+def write_json(fh, data: dict) -> None:
+    """Write ``data`` (JSON types and NumPy arrays) to the text file ``fh`` as strict
+    JSON, one line per top-level key, non-finite numbers as null
+    (:func:`finite_or_none`). Long lists and arrays (a trajectory's time axis) are
+    written item by item, each with JSON's C encoder: neither the text nor the arrays as
+    Python lists are ever held whole in memory, and a KeyboardInterrupt stops the
+    writing between two items (an indent would use the encoder's pure-Python path, 2-3x
+    slower)."""
+    fh.write("{")
+    for i, (key, value) in enumerate(data.items()):
+        fh.write(("," if i else "") + f"\n {json.dumps(key)}: ")
+        _write_value(fh, value, 1)
+    fh.write("\n}\n")
+
+
+def _write_value(fh, value: Any, depth: int) -> None:
+    """One JSON value (see :func:`write_json`), with the C encoder's separators."""
+    if depth < STREAM_DEPTH and isinstance(value, dict):
+        fh.write("{")
+        for j, (key, item) in enumerate(value.items()):
+            fh.write((", " if j else "") + json.dumps(key) + ": ")
+            _write_value(fh, item, depth + 1)
+        fh.write("}")
+    elif depth < STREAM_DEPTH and (
+            isinstance(value, list) and len(value) > STREAM_ITEMS
+            or isinstance(value, np.ndarray) and value.ndim > 1 and len(value) > 1):
+        fh.write("[")
+        for j, item in enumerate(value):
+            if j:
+                fh.write(", ")
+            _write_value(fh, item, depth + 1)
+        fh.write("]")
+    else:
+        fh.write(json.dumps(finite_or_none(value)[0], allow_nan=False))
+
+
+def _umask() -> int:
+    """The process's file-creation mask (read by setting it and putting it back)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def count_nonfinite(value: Any) -> int:
+    """How many NaN or infinite floats ``value`` (arrays, floats, dicts, lists) holds:
+    the number :func:`finite_or_none` replaces."""
+    if isinstance(value, np.ndarray):
+        return int(np.count_nonzero(~np.isfinite(value))) if value.dtype.kind == "f" else 0
+    if isinstance(value, float):
+        return 0 if math.isfinite(value) else 1
+    if isinstance(value, dict):
+        return sum(count_nonfinite(item) for item in value.values())
+    if isinstance(value, (list, tuple)):
+        return sum(count_nonfinite(item) for item in value)
+    return 0
 
 
 def finite_or_none(value: Any) -> tuple[Any, int]:

@@ -8,7 +8,6 @@ JAX's persistent compilation cache, :mod:`.compile_cache`) and returns a
 """
 from __future__ import annotations
 
-import json
 import time
 import warnings
 from pathlib import Path
@@ -25,7 +24,7 @@ from .dynamics import Trajectory, rollout
 from .dynamics.driver import compile_key
 from .mechanisms import multiplier_count
 from .model import Model
-from .output import finite_or_none, write_atomic
+from .output import count_nonfinite, finite_or_none, write_atomic, write_json
 from .packing import Layout, pack
 from .scene import Scene
 from .statics import Equilibrium, as_traced, equilibrium, settings_from_scene
@@ -263,6 +262,13 @@ class Result:
         dynamic results add per-rod ``velocities`` (T, nodes, 6), as :meth:`velocities`.
         Non-finite numbers (a solve that blew up) are ``None``; the message then says how
         many were replaced, so strict JSON readers accept the file."""
+        d, replaced = finite_or_none(self._contents())
+        d["message"] += _replaced_note(replaced)
+        return d
+
+    def _contents(self) -> dict:
+        """The layout of :meth:`to_dict` with its arrays kept NumPy arrays and its
+        non-finite numbers as they are."""
         rods = {}
         for r in self.model.structure.rods:
             rods[r.name] = {"positions": self.positions(r.name),
@@ -290,10 +296,6 @@ class Result:
             d["failed_at"] = ({"time": self.failed_at} if self.time is not None else
                               {"load_level": self.load_level,
                                "residual_norm": self.residual_norm})
-        d, replaced = finite_or_none(d)
-        if replaced:
-            d["message"] += (f" ({replaced} non-finite value{'s' * (replaced > 1)} "
-                             "written as null)")
         return d
 
     def save(self, path) -> Path:
@@ -304,13 +306,10 @@ class Result:
         folder and renamed: a failed or interrupted write leaves the old file (or none),
         never a partial one. An existing file is replaced."""
         path = Path(path)
-        if path.suffix == ".json":
-            # one line per top-level key: JSON's C encoder (an indent would use its
-            # pure-Python one, 2-3x slower for a long trajectory)
-            text = "{\n" + ",\n".join(
-                f" {json.dumps(key)}: {json.dumps(value, allow_nan=False)}"
-                for key, value in self.to_dict().items()) + "\n}\n"
-            return write_atomic(path, lambda fh: fh.write(text))
+        if path.suffix == ".json":   # written piece by piece (output.write_json)
+            data = self._contents()
+            data["message"] += _replaced_note(count_nonfinite(data))
+            return write_atomic(path, lambda fh: write_json(fh, data))
         if path.suffix != ".npz":
             raise ValueError(f"output: unsupported suffix {path.suffix!r} (use .json or .npz)")
         d = self.to_dict()
@@ -337,6 +336,13 @@ class Result:
             if self.time is not None:
                 arrays[f"{rod}/velocities"] = self.velocities(rod)
         return write_atomic(path, lambda fh: np.savez(fh, **arrays), binary=True)
+
+
+def _replaced_note(replaced: int) -> str:
+    """The note a result's message gets when ``replaced`` non-finite numbers are written
+    as null ("" when none)."""
+    return (f" ({replaced} non-finite value{'s' * (replaced > 1)} written as null)"
+            if replaced else "")
 
 
 def _run_dynamic(scene: Scene, model: Model, progress=None) -> Result:

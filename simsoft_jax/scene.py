@@ -19,20 +19,23 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, fail, index,
-                        integer, join, matrix, number, plain, positive, read_table, readonly,
-                        require, rotation_vector, string, table, toml_document, vector)
+from ._validate import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, describe,
+                        fail, index, integer, join, matrix, number, plain, positive,
+                        read_table, readable, readonly, require, rotation_vector, short_key,
+                        string, table, toml_document, vector)
 from .scene_actuators import parse_chambers, parse_tendons
 from .scene_attachments import parse_masses, parse_offset
 from .scene_contact import check_self_contact, parse_contact, parse_obstacles
 from .scene_fields import check_fluid_rods, parse_fluid, parse_magnetic_field
-from .scene_mechanisms import check_mechanism, jointed_rods, parse_bodies, parse_joints
+from .scene_mechanisms import check_mechanism, parse_bodies, parse_joints
 from .scene_rods import parse_materials, parse_rod
-from .scene_limits import (MAX_ELEMENTS, MAX_STEPS, check_loads_on_held_nodes,
+from .scene_limits import (MAX_ELEMENTS, MAX_ITERATIONS, MAX_LOAD_STEPS, MAX_STEPS,
+                           MAX_STEPS_LIMIT, check_loads_on_held_nodes,
                            check_point_loads_in_elements, warn_short_features)
+from .scene_start import check_start
 from .scene_specs import (ConstraintSpec, GeometrySpec, InitialVelocitySpec, LoadSpec,
                           ProfileSpec, RodSpec, SolverSettings)
-from .supports import AXES, stress_free_frames, unheld_message
+from .supports import AXES
 
 __all__ = ["SolverSettings", "GeometrySpec", "RodSpec", "ConstraintSpec", "ProfileSpec",
            "LoadSpec", "InitialVelocitySpec", "Scene", "load_scene", "save_scene"]
@@ -165,23 +168,13 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
                      "displacement or rotation (it would hold the node where it starts); "
                      "use a clamp at the driven pose (base or initial), or solver.kind = "
                      "\"dynamic\"")
-    if solver.kind == "static":  # rigid-body motion left free makes statics singular
-        jointed = jointed_rods(joints)
-        for i, rod in enumerate(rods.values()):
-            if rod.initial_points is not None or rod.initial_rotations is not None:
-                continue   # checked where it starts, by model.build_model
-            if rod.name in jointed:
-                continue   # held through its joints: a free mechanism fails the solve
-            held = [c for c in constraints if c.rod == rod.name]
-            frames = stress_free_frames(rod, {c.node for c in held})
-            message = unheld_message(rod.name, i, held, frames, rod.geometry.arc_length)
-            if message:
-                raise ValueError(message)
-    return Scene(name=name, solver=solver, gravity=gravity, rods=tuple(rods.values()),
-                 constraints=constraints, loads=loads, initial_velocity=velocities,
-                 source=None, raw=raw, masses=masses, bodies=bodies, joints=joints,
-                 tendons=tendons, chambers=chambers, obstacles=obstacles, contact=contact,
-                 magnetic_field=magnetic_field, fluid=fluid)
+    scene = Scene(name=name, solver=solver, gravity=gravity, rods=tuple(rods.values()),
+                  constraints=constraints, loads=loads, initial_velocity=velocities,
+                  source=None, raw=raw, masses=masses, bodies=bodies, joints=joints,
+                  tendons=tendons, chambers=chambers, obstacles=obstacles, contact=contact,
+                  magnetic_field=magnetic_field, fluid=fluid)
+    check_start(scene)
+    return scene
 
 
 def _parse_solver(value: Any) -> SolverSettings:
@@ -193,9 +186,10 @@ def _parse_solver(value: Any) -> SolverSettings:
         out["tolerance"] = positive(s["tolerance"], "solver.tolerance")
         if out["tolerance"] >= 1.0:
             fail("solver.tolerance", f"must be < 1 (a relative tolerance), got {s['tolerance']}")
-    for key in ("max_iterations", "load_steps", "save_every"):
+    for key, most in (("max_iterations", MAX_ITERATIONS), ("load_steps", MAX_LOAD_STEPS),
+                      ("save_every", MAX_STEPS_LIMIT)):
         if key in s:
-            out[key] = integer(s[key], join("solver", key), minimum=1)
+            out[key] = integer(s[key], join("solver", key), minimum=1, maximum=most)
     if "level_tolerance" in s:
         out["level_tolerance"] = number(s["level_tolerance"], "solver.level_tolerance")
         if not 0.0 <= out["level_tolerance"] < 1.0:
@@ -213,7 +207,8 @@ def _parse_solver(value: Any) -> SolverSettings:
             require(s, "solver", key)
     if "dt" in out and "t_end" in out and out["dt"] > out["t_end"]:
         fail("solver.dt", f"must be <= solver.t_end ({out['t_end']}), got {out['dt']}")
-    limit = integer(s.get("max_steps", MAX_STEPS), "solver.max_steps", minimum=1)
+    limit = integer(s.get("max_steps", MAX_STEPS), "solver.max_steps", minimum=1,
+                    maximum=MAX_STEPS_LIMIT)
     if "dt" in out and "t_end" in out and out["t_end"] / out["dt"] > limit:
         fail("solver.dt", f"t_end / dt = {out['t_end'] / out['dt']:.4g} time steps, more "
              f"than solver.max_steps ({limit}); increase dt, or raise solver.max_steps "
@@ -423,17 +418,29 @@ def _parse_velocities(items: list[dict], rods: dict[str, RodSpec]) -> tuple:
 
 # ----------------------------------------------------------------------------- files
 
+def _unique_keys(pairs: list) -> dict:
+    """A JSON object from its ``(key, value)`` pairs, refusing a key given twice (the
+    TOML reader refuses it too; JSON readers would keep the last value silently)."""
+    out = {}
+    for key, value in pairs:
+        if key in out:
+            raise ValueError(f"the key {short_key(key)!r} appears twice in one object "
+                             "(give each key once)")
+        out[key] = value
+    return out
+
+
 def load_scene(path: str | Path) -> Scene:
     """Read and validate a ``.toml`` or ``.json`` scene file."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in (".toml", ".json"):
-        raise ValueError(f"{path}: unsupported scene file type {path.suffix!r} "
-                         "(use .toml or .json)")
+        raise ValueError(readable(f"{path}: unsupported scene file type {path.suffix!r} "
+                                  "(use .toml or .json)"))
     try:
         if suffix == ".json":
             with open(path, encoding="utf-8") as fh:
-                data = json.load(fh)
+                data = json.load(fh, object_pairs_hook=_unique_keys)
         else:
             if sys.version_info >= (3, 11):
                 import tomllib
@@ -442,12 +449,17 @@ def load_scene(path: str | Path) -> Scene:
             with open(path, "rb") as fh:
                 data = tomllib.load(fh)
     except OSError as err:
-        raise ValueError(f"{path}: cannot read scene file: {err.strerror or err}") from None
+        raise ValueError(readable(f"{path}: cannot read scene file: "
+                                  f"{err.strerror or err}")) from None
     except ValueError as err:  # JSONDecodeError and TOMLDecodeError are ValueErrors
-        raise ValueError(f"{path}: not valid {suffix[1:].upper()}: {err}") from None
+        raise ValueError(readable(f"{path}: not valid {suffix[1:].upper()}: {err}")) from None
     except RecursionError:  # the parsers recurse per nesting level
-        raise ValueError(f"{path}: nested too deeply to read (a scene may nest tables and "
-                         f"arrays at most {MAX_DEPTH} levels deep)") from None
+        raise ValueError(readable(f"{path}: nested too deeply to read (a scene may nest "
+                                  f"tables and arrays at most {MAX_DEPTH} levels deep)")) \
+            from None
+    if not isinstance(data, dict):
+        raise ValueError(readable(f"{path}: must hold a scene table (an object of keys), "
+                                  f"got {describe(data)}"))
     scene = Scene.from_dict(data, base_dir=path.parent)
     return dataclasses.replace(scene, source=str(path))
 

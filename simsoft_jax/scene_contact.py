@@ -29,6 +29,8 @@ SLIP_FRACTION = 1.0e-3         # default slip-displacement scale (statics) / con
 QUADRATURE_POINTS = 4
 SELF_NAME = "rods"             # the rod-rod entry of the result's contacts
 MAX_PAIRS = 8                  # default capacity of the rod-rod narrow phase (element pairs)
+MOST_QUADRATURE_POINTS = 64    # the largest contact.quadrature_points accepted
+MOST_PAIRS = 1_000             # the largest contact.max_pairs (a dense solve of 6 (2 n + 2))
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,9 +145,10 @@ def parse_contact(value) -> ContactSpec:
     for key in ("radius", "stiffness", "slip_velocity", "slip_displacement", "self_exclusion"):
         if key in c:
             args[key] = positive(c[key], join("contact", key))
-    for key in ("quadrature_points", "max_pairs"):
+    for key, most in (("quadrature_points", MOST_QUADRATURE_POINTS),
+                      ("max_pairs", MOST_PAIRS)):
         if key in c:
-            args[key] = integer(c[key], join("contact", key), minimum=1)
+            args[key] = integer(c[key], join("contact", key), minimum=1, maximum=most)
     return ContactSpec(**args)
 
 
@@ -181,6 +184,24 @@ def _section_radius(rod) -> float | None:
     return 0.5 * dims.get("diameter", dims.get("outer_diameter"))
 
 
+def contact_radius(rod, spec) -> float | None:
+    """Contact radius (m) of a RodSpec: its ``contact_radius``, else ``[contact].radius``
+    (``spec``, a ContactSpec), else its circular section's; None when none applies."""
+    return getattr(rod, "contact_radius", None) or spec.radius or _section_radius(rod)
+
+
+def check_contact_radius(rods, spec, obstacles: bool) -> None:
+    """With obstacles or self-contact, every rod (RodSpecs, scene order) needs a contact
+    radius (:func:`contact_radius`); ``spec`` the ContactSpec or None (defaults)."""
+    spec = spec or ContactSpec()
+    if not (obstacles or spec.self_contact):
+        return
+    for i, rod in enumerate(rods):
+        if contact_radius(rod, spec) is None:
+            fail("contact.radius", f"required: rod {rod.name!r} has no circular section to "
+                 f"take it from (or set rods[{i}].contact_radius)")
+
+
 def contact_tables(scene, stiffness, length):
     """Model tables of the contact: per element radius (E,) m, penalty stiffness (E,)
     N/m^2 and slip-displacement scale of static friction (E,) m, obstacle rows (K,ROW),
@@ -194,12 +215,8 @@ def contact_tables(scene, stiffness, length):
     spec = getattr(scene, "contact", None) or ContactSpec()
     obstacles = getattr(scene, "obstacles", ())
     radius = []
-    for i, rod in enumerate(scene.rods):
-        r = getattr(rod, "contact_radius", None) or spec.radius or _section_radius(rod)
-        if r is None and (obstacles or spec.self_contact):
-            fail("contact.radius", f"required: rod {rod.name!r} has no circular section to "
-                 f"take it from (or set rods[{i}].contact_radius)")
-        radius += [r or 0.0] * rod.elements
+    for rod in scene.rods:   # every rod has one where it is needed (scene reading)
+        radius += [contact_radius(rod, spec) or 0.0] * rod.elements
     K = np.asarray(stiffness)
     EI = np.maximum(K[:, 4, 4], K[:, 5, 5]) if K.ndim == 3 else np.maximum(K[:, 4], K[:, 5])
     k = (np.full(len(length), spec.stiffness) if spec.stiffness is not None

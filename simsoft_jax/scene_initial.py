@@ -5,6 +5,7 @@ input is rejected with an error naming its key (see :mod:`simsoft_jax.scene`).""
 from __future__ import annotations
 
 import json
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -141,6 +142,9 @@ def _read_result(file: Path, path: str) -> dict:
                         rods.setdefault(rod, {})[field] = np.asarray(z[key], dtype=float)
     except OSError as err:
         fail(path, f"cannot read {str(file)!r}: {err.strerror or err}")
+    except (zipfile.BadZipFile, EOFError, KeyError) as err:  # a damaged .npz archive
+        fail(path, f"{file.name}: not a readable result file (a damaged .npz archive: "
+             f"{err})")
     except (ValueError, TypeError) as err:  # bad JSON / npz, ragged arrays
         if str(err).startswith(path + ":"):
             raise

@@ -14,6 +14,9 @@ from .geometry import element_chords, element_turns
 from .scene_specs import GeometrySpec
 
 MAX_STEPS = 1_000_000      # time steps a dynamic run may take unless solver.max_steps says more
+MAX_STEPS_LIMIT = 100_000_000   # the largest solver.max_steps (and save_every) accepted
+MAX_ITERATIONS = 10_000    # the largest solver.max_iterations (Newton passes of one solve)
+MAX_LOAD_STEPS = 1_000_000  # the largest solver.load_steps (first increment 1e-6 of the loads)
 MAX_ELEMENTS = 20_000      # elements in one scene (all rods)
 MAX_ELEMENT_TURN_DEG = 90.0  # stress-free rotation of one element (helical element's range)
 ROUND_OFF = 1e-9           # relative: a feature as long as dt up to round-off is not shorter

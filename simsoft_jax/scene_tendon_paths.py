@@ -8,7 +8,7 @@ between them: on each rod it runs from the node where it enters (``from_node`` o
 first rod, the weld's node otherwise) to the node where it leaves (the next weld's node,
 ``to_node`` on the last rod). Rods joined by no path of welds, or by more than one (a
 loop of welds), are refused. That the routing meets itself at each weld is checked when
-the model is built (:func:`simsoft_jax.actuator_tables.check_crossings`).
+the scene is read (:mod:`simsoft_jax.scene_start`).
 """
 from __future__ import annotations
 

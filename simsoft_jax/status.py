@@ -24,7 +24,8 @@ class Status(enum.IntEnum):
     OFF_BRANCH = 4       # a nodal rotation increment left the branch of the exponential map
     MAX_ATTEMPTS = 5     # the static continuation used all its attempts (max_attempts)
     NOT_RUN = 6          # no failure recorded (used as a cause when there was none)
-    INTERRUPTED = 7      # the host driver stopped on KeyboardInterrupt (Ctrl-C) between chunks
+    INTERRUPTED = 7      # a dynamic run's host driver stopped on KeyboardInterrupt (Ctrl-C)
+    #                      between chunks (a static solve interrupted returns no result)
 
     @property
     def code(self) -> str:

@@ -325,10 +325,10 @@ def test_bad_contact_input_is_rejected_naming_the_key(change, message):
 
 def test_contact_radius_needed_without_a_circular_section():
     """A rod given by stiffness tables has no section radius: contact.radius or
-    rods[i].contact_radius is required (checked when the model is built)."""
+    rods[i].contact_radius is required (checked while the scene is read)."""
     scene = _with(contact={})
     with pytest.raises(ValueError, match=r"contact.radius: required"):
-        sj.build_model(sj.Scene.from_dict(scene))
+        sj.Scene.from_dict(scene)
     scene["rods"] = [dict(WRAP["rods"][0], contact_radius=0.02)]
     model = sj.build_model(sj.Scene.from_dict(scene))
     np.testing.assert_allclose(model.contact_radius, 0.02)

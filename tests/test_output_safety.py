@@ -90,14 +90,20 @@ def result():
 
 
 def test_failed_json_write_keeps_the_old_file(result, tmp_path, monkeypatch):
-    """json.dumps raising (as an interrupt would) leaves the old file byte for byte."""
+    """json.dumps raising (as an interrupt would) after part of the file is written
+    leaves the old file byte for byte."""
+    import json
     out = tmp_path / "out.json"
     result.save(out)
     before = out.read_bytes()
+    calls, dumps = [], json.dumps
 
     def interrupted(*args, **kwargs):
-        raise KeyboardInterrupt
-    monkeypatch.setattr("simsoft_jax.results.json.dumps", interrupted)
+        calls.append(1)
+        if len(calls) == 5:   # the file written piece by piece: some pieces are out
+            raise KeyboardInterrupt
+        return dumps(*args, **kwargs)
+    monkeypatch.setattr("simsoft_jax.output.json.dumps", interrupted)
     with pytest.raises(KeyboardInterrupt):
         result.save(out)
     assert out.read_bytes() == before

@@ -22,7 +22,7 @@ sum of its parts inside the rods it passes (each part in its own rod's elements 
 section frame), so ``T l`` adds the same per-element terms. Limit: the tendon's bridge
 across a weld (from its routing point on one side to the one on the other) is left out,
 which is exact only when the two points coincide; they must coincide at the start
-(checked at build time, :func:`simsoft_jax.actuator_tables.check_crossings`), and the
+(checked while the scene is read, :mod:`simsoft_jax.scene_start`), and the
 weld keeps its two sides' relative pose, hence the points together and the bridge of
 zero length, at every solution (to the solver's tolerance on the weld). A kink there
 (the tangents of the two parts differ) then pushes on the weld point with
