@@ -59,11 +59,12 @@ def describe(kind: str, status, cause, where: float, residual: float) -> str:
     kind: "static" or "dynamic"; status, cause: :class:`Status` codes; where: the load
     level reached (static, fraction of the loads) or the time of the failed step
     (dynamic, s); residual: the residual norm there (N, moments divided by the model's
-    characteristic length).
+    characteristic length; a converged dynamic run has none to give).
     """
     status, cause = Status(int(status)), Status(int(cause))
-    if status == Status.CONVERGED:
-        return f"{kind} solve converged (residual {residual:.3g})"
+    if status == Status.CONVERGED:   # a dynamic run has no residual left: every step met it
+        return (f"static solve converged (residual {residual:.3g} N)" if kind == "static"
+                else "dynamic solve converged at every step")
     place = (f"at load level {where:.6g}" if kind == "static" else f"at t = {where:.6g} s")
     if status == Status.INTERRUPTED:
         return f"{kind} solve stopped {place}: {reason(status)}"
