@@ -3,7 +3,7 @@ predictions against the published UM/NAST beam model and the measurements, and a
 command-line calibration of flap and torsional stiffness on half the tip masses with a
 prediction of the other half.
 
-Data: ``shared/data/real/pazy_wing_technion`` (read its README for the set-up and caveats).
+Data: ``simsoft_jax/data/real/pazy_wing_technion`` (read its README for the set-up and caveats).
 Model, from the files only:
 
 * 15 elements on the reference axis (44 % chord, 0.5498 m), one per data element, with
@@ -49,11 +49,12 @@ from _common import parse_args, write_summary
 
 import simsoft_jax as sj
 from simsoft_jax import sections
+from simsoft_jax.data_files import data_path
 from simsoft_jax.calibration_groups import parse_groups, predict
 from simsoft_jax.cli import main as cli
 from simsoft_jax.measurements import observation_set
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "pazy_wing_technion"
+DATA = data_path("real", "pazy_wing_technion")
 G = 9.80665
 CHORD = 0.1
 AXIS = 0.44          # reference axis, fraction of the chord from the leading edge

@@ -7,7 +7,9 @@
   equilibrium; prints the compile and the solve time separately;
 * ``validate SCENE``: check a scene file without solving it;
 * ``princeton``: the 25 load cases of the Princeton beam, a results table and figures
-  (seed Figs. 15-18 when ``--measurements`` are given);
+  (the paper's Figs. 15-18 against ``--measurements``; without them, Figs. 16-18 against
+  the shipped ANSYS solid-element predictions in ``OUT/vs_ansys_solid``, unless
+  ``--no-published``);
 * ``calibrate --scenes S... --measurements M.csv --params EIy,EIz,GJ -o fitted.json``:
   fit sectional parameters to measured positions; with an observation file (points at
   offsets, displacements, rotations/twist, reference cases, std), parameters by groups
@@ -166,8 +168,33 @@ def _princeton(args) -> int:
     if errors is not None:
         print(f"average mean error {errors.e_mu.mean():.4f} % +- {errors.e_mu.std():.4f}; "
               f"average tip error {errors.tip.mean():.4f} % +- {errors.tip.std():.4f}")
+    if not args.measurements and not args.no_published:
+        try:
+            figures += _princeton_published(args.elements, out / "vs_ansys_solid")
+        except (ValueError, RuntimeError) as err:
+            print(f"error: {err}", file=sys.stderr)
+            return 2
     print("wrote " + ", ".join(str(p) for p in [table, *figures]))
     return 0 if replay.converged.all() else 1
+
+
+def _princeton_published(elements: int, out: Path) -> list:
+    """Eq. (112) at the tip against the shipped ANSYS solid-element predictions (no
+    gravity, dead tip loads; model output, see the data README): table and Figs. 16-18
+    in ``out``; prints the tip errors. Returns the written paths."""
+    from . import princeton
+    from .data_files import data_path
+    from .princeton_figures import summary, station_errors
+    err = princeton.errors(princeton.read_published_tip(
+        data_path("princeton", "model_predictions_tip.csv")), elements, gravity=False)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = [princeton.write_table(out / "tip_errors.csv", err.replay, err),
+             station_errors(err, out / "fig16_errors.png"), summary(err, out / "fig17_mean_errors.png"),
+             summary(err, out / "fig18_error_spread.png", spread=True)]
+    print(f"vs ANSYS solid elements (published model output, no gravity, "
+          f"{len(err.tip)} tip cases): eq. (112) tip error mean {err.tip.mean():.4f} %, "
+          f"max {err.tip.max():.4f} %")
+    return paths
 
 
 def _calibrate(args) -> int:
@@ -361,6 +388,9 @@ def main(argv=None) -> int:
     p_pr.add_argument("--stations", default="0.25,0.5,0.75,1",
                       help="stations r/L, comma separated (default 0.25,0.5,0.75,1)")
     p_pr.add_argument("--measurements", help="measured deflections CSV (simsoft_jax.princeton)")
+    p_pr.add_argument("--no-published", action="store_true",
+                      help="skip the comparison with the shipped ANSYS solid-element "
+                           "predictions (made when no --measurements are given)")
     p_pr.add_argument("--out", default="out/princeton", help="output folder")
     p_pr.set_defaults(func=_princeton)
     _add_calibration_commands(sub)
