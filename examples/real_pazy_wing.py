@@ -11,10 +11,9 @@ Model, from the files only:
   ``length``) so that properties and masses sit where the data put them; its
   4x4 stiffness ``[extension, twist, flap, edgewise]`` (K11..K44 with couplings) becomes
   the 6x6 section matrix by :func:`simsoft_jax.sections.beam4_stiffness` (shear-rigid data:
-  GA = 100 EA keeps shear strains negligible, below 1e-8 here; the tip deflection moves by
-  4e-8 of itself from GA = 1e4 EA, while the static solves take 4x fewer Newton
-  iterations: a stiffer shear puts the residual's round-off floor, ~eps GA, far above the
-  tolerance). Frames: world = the Nastran frame of the
+  its default GA = 100 EA keeps shear strains negligible, below 1e-8 here; the tip
+  deflection moves by 4e-8 of itself from GA = 1e4 EA, while the static solves take 4x
+  fewer Newton iterations). Frames: world = the Nastran frame of the
   data (X aft along the chord, Y spanwise, Z up); the rod's local x is +Y, local y = -X
   (towards the leading edge), local z = +Z, so flap bending is ``kappa_y`` and a positive
   rotation about local x lifts the leading edge (nose up, the data's positive twist).
@@ -59,7 +58,6 @@ G = 9.80665
 CHORD = 0.1
 AXIS = 0.44          # reference axis, fraction of the chord from the leading edge
 BEHIND_TE = {0: 0.04, 1: 0.08}
-SHEAR = 1e2          # GA / EA of the shear-rigid data (see the module docstring)
 HEADER = "scene,rod,node,offset_x,offset_y,offset_z,quantity,value,std,reference\n"
 
 
@@ -82,7 +80,7 @@ def wing_scene(skin: int, test: str, mass: float) -> dict:
                        [k["K12"], k["K22"], k["K23"], k["K24"]],
                        [k["K13"], k["K23"], k["K33"], k["K34"]],
                        [k["K14"], k["K24"], k["K34"], k["K44"]]])
-        K = sections.beam4_stiffness(K4, shear=(SHEAR * k["K11"], SHEAR * k["K11"]))
+        K = sections.beam4_stiffness(K4)
         segments.append({"elements": 1, "length": float(length),
                          "stiffness": {"matrix": K.tolist()},
                          "inertia": {"rhoA": 1e-9, "rhoJ": 0.0, "rhoIy": 0.0, "rhoIz": 0.0}})
