@@ -177,3 +177,27 @@ def test_splits_by_column_and_metrics_per_quantity(tmp_path):
     assert m["uz"]["n"] == 5 and m["uz"]["rms"] == pytest.approx(0.002)
     assert m["twist"]["mean"] == pytest.approx(-0.01)
     assert m["twist"]["rms_over_std"] == pytest.approx(0.01 / 0.0005)
+
+
+@pytest.mark.slow
+def test_cli_holds_out_the_upper_tip_masses(tmp_path, capsys):
+    """``calibrate --hold-out-by tip_mass``: fitted on the two lighter masses, the two
+    heavier ones are predicted (synthetic data from known scales: errors at round-off),
+    with the errors per quantity."""
+    from simsoft_jax.cli import main
+    obs, scenes = observations(tmp_path)
+    groups = parse_groups("EIy,GJ")
+    values = predict(obs, groups, [1.1, 0.9])
+    paths = []
+    for scene in scenes:
+        paths.append(str(tmp_path / f"{scene.name}.toml"))
+        sj.save_scene(scene, paths[-1])
+    lines = (tmp_path / "obs.csv").read_text().splitlines()
+    body = [ln.replace(",0,0.0005,", f",{float(v)!r},0.0005,") for ln, v in zip(lines[1:], values)]
+    (tmp_path / "m.csv").write_text("\n".join(lines[:1] + body) + "\n")
+    assert main(["calibrate", "--scenes", *paths, "--measurements", str(tmp_path / "m.csv"),
+                 "--params", "EIy,GJ", "--hold-out-by", "tip_mass"]) == 0
+    printed = capsys.readouterr().out
+    assert "held-out rows: 4 rows" in printed and "held-out uz: 2 rows" in printed
+    rms = float(printed.split("held-out twist: 2 rows, rms ")[1].split(",")[0])
+    assert rms < 1e-9
