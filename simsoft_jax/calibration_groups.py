@@ -276,7 +276,8 @@ def _check_solves(prob: Problem, names: Sequence[str], solves, what: str, x):
                                                    float(level[k]), float(residual[k]))
            for k in np.flatnonzero(~converged)]
     raise RuntimeError(f"{what}: {len(bad)} static solve(s) failed at scales "
-                       f"{np.round(np.exp(np.asarray(x)), 6).tolist()}: " + "; ".join(bad))
+                       f"{np.round(np.exp(np.clip(np.asarray(x), -700, 700)), 6).tolist()}: "
+                       + "; ".join(bad))
 
 
 def evaluate_problem(prob: Problem, names: Sequence[str], x, jacobian: bool = True,

@@ -201,3 +201,22 @@ def test_cli_holds_out_the_upper_tip_masses(tmp_path, capsys):
     assert "held-out rows: 4 rows" in printed and "held-out uz: 2 rows" in printed
     rms = float(printed.split("held-out twist: 2 rows, rms ")[1].split(",")[0])
     assert rms < 1e-9
+
+
+def test_levenberg_marquardt_stops_when_no_decrease_is_left():
+    """A linear least-squares problem with an inconsistent right-hand side: the cost test
+    (the Gauss-Newton model predicts no further decrease) ends it as STATIONARY at the
+    normal-equations solution after one accepted step and one check, instead of
+    shrinking rejected steps until the damping overflows."""
+    from simsoft_jax.least_squares import Outcome, least_squares
+    A = np.array([[1.0, 0.0], [1.0, 1.0], [1.0, 2.0], [1.0, 3.0]])
+    y = np.array([0.1, 0.9, 2.2, 2.8])
+
+    def evaluate(U):
+        return (U @ A.T - y), np.broadcast_to(A, (len(U),) + A.shape), np.ones(len(U), bool)
+
+    sol = least_squares(evaluate, np.zeros((1, 2)), np.full((1, 2), -np.inf),
+                        np.full((1, 2), np.inf), lambda r: np.full(len(r), np.inf), 0.0,
+                        gradient_tolerance=0.0, cost_tolerance=1e-12)
+    assert sol.outcome[0] == Outcome.STATIONARY and sol.steps[0] <= 3
+    np.testing.assert_allclose(sol.u[0], np.linalg.lstsq(A, y, rcond=None)[0], rtol=1e-6)
