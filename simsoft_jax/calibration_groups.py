@@ -17,8 +17,12 @@ the scale (``EIy@0-5=0.5:2``). A small TOML file gives the same::
 
 The residual of row k is ``(predicted_k - value_k) / std_k``
 (:func:`simsoft_jax.measurements.read_observations`); predictions come from the static
-equilibria of all scenes (solved per structure in one vmapped call, gradients by the
-implicit function theorem); the fit is :func:`simsoft_jax.calibration.minimize`.
+equilibria of the scenes the rows use (solved per structure and solver settings in one
+vmapped call, compiled once per layout and reused; gradients by the implicit function
+theorem); the fit is projected Levenberg-Marquardt
+(:func:`simsoft_jax.least_squares.least_squares`) with optional Gaussian priors per group
+and a smoothness prior between neighbouring groups (:func:`prior_rows`); uncertainty and
+identifiability: :mod:`simsoft_jax.calibration_report`.
 """
 from __future__ import annotations
 
