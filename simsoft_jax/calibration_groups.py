@@ -443,6 +443,11 @@ def fit_groups(obs: ObservationSet, groups: Sequence[Group], max_steps: int = 50
     given_std = bool(np.any(obs.std != 1.0))
     variance = 1.0 if given_std else float(r[:n] @ r[:n]) / max(n - P, 1)
     info = information(J, variance, [g.label for g in groups])
+    message = info.message
+    if info.unidentified and outcome not in (Outcome.REACHED, Outcome.STATIONARY):
+        message += (f"; the minimization did not settle ({outcome.name} after "
+                    f"{int(sol.steps[0])} steps) because of them: the cost keeps falling "
+                    f"slowly as they run off (scales {np.round(np.exp(x), 4).tolist()})")
     scale = np.exp(x)
     model = obs.models[0]
     masks = element_masks(groups, model.structure)
@@ -456,7 +461,7 @@ def fit_groups(obs: ObservationSet, groups: Sequence[Group], max_steps: int = 50
     return GroupFit(groups, scale, scale * info.std_log, info.covariance, info.correlation,
                     ranges, r[:n], float(np.sqrt(np.mean((r[:n] * obs.std) ** 2))),
                     np.asarray(history), outcome in (Outcome.REACHED, Outcome.STATIONARY),
-                    int(sol.steps[0]), outcome.name, info.unidentified, info.message,
+                    int(sol.steps[0]), outcome.name, info.unidentified, message,
                     info.eigenvalues, int(sol.evaluations[0]))
 
 
@@ -478,6 +483,6 @@ def print_fit(fit: GroupFit, out=None):
                   file=out)
     if fit.unidentified:
         print(f"NOT IDENTIFIED: {', '.join(fit.unidentified)}: {fit.message}", file=out)
-    if not fit.converged:
+    elif not fit.converged:
         print(f"the minimization ended without a stationary point ({fit.outcome} after "
               f"{fit.iterations} steps)", file=out)
