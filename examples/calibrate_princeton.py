@@ -7,7 +7,7 @@ a) Identifiability: node positions of the Princeton beam (no gravity, seven load
    1 % of the rms deflection, are fitted from the seed's values by L-BFGS through the
    implicit-function gradients; the fitted factors are compared with the truth and the
    Gauss-Newton standard deviations.
-b) The ANSYS solid-element predictions (3-D elasticity, shared/data/princeton) used as
+b) The ANSYS solid-element predictions (3-D elasticity, simsoft_jax/data/princeton) used as
    measurements: EI_y, EI_z, GJ fitted on theta = 0, 30, 60, 90 deg (2 and 3 lbf), and
    the eq. (112)-style tip error on the held-out 15, 45, 75 deg cases before and after.
 Figures: loss histories, and held-out errors before/after.
@@ -23,8 +23,9 @@ from _common import parse_args, save, write_summary
 import simsoft_jax as sj
 from simsoft_jax import calibration as cal
 from simsoft_jax import princeton as pr
+from simsoft_jax.data_files import data_path
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "princeton" / "model_predictions_tip.csv"
+DATA = data_path("princeton", "model_predictions_tip.csv")
 NAMES = ("EIy", "EIz", "GJ")
 TRUE = np.array([1.2, 0.85, 1.1])
 
@@ -59,32 +60,29 @@ def main() -> int:
     axes[0].semilogy(fit_a.loss_history, "o-")
     axes[0].set(title="3a) synthetic, 1 % noise", xlabel="L-BFGS step", ylabel="loss 0.5 |r|^2 [m^2]")
 
-    if args.data.is_file():
-        measured = pr.read_published_tip(args.data)
-        train_rows = np.isin(measured.theta_deg, (0, 30, 60, 90))
-        pick = lambda rows: pr.Measurements(*(a[rows] for a in measured))  # noqa: E731
-        train = pr.calibration_targets(pick(train_rows), beam)
-        held = pr.calibration_targets(pick(~train_rows), beam)
-        fit_b = cal.fit_static(train, NAMES)
-        error = lambda scale: 100 * np.abs(cal.evaluate(held, NAMES, scale)).reshape(-1, 2).sum(1) / pr.LENGTH  # noqa: E731
-        before, after = error(None), error(fit_b.scale)
-        print("3b) fitted to ANSYS solid on 0/30/60/90 deg: "
-              + ", ".join(f"{n} = {fit_b.values[n]:.4g} (x{s:.3f})" for n, s in zip(NAMES, fit_b.scale)))
-        print(f"    held-out tip error (15/45/75 deg): mean {before.mean():.3f} % -> "
-              f"{after.mean():.3f} %, max {before.max():.3f} % -> {after.max():.3f} %")
-        summary["ansys_held_out"] = {"fitted_scale": fit_b.scale.tolist(), "values": fit_b.values,
-                                     "error_before_percent": before.tolist(),
-                                     "error_after_percent": after.tolist()}
-        axes[1].semilogy(fit_b.loss_history, "o-", label="training loss")
-        ax2 = axes[1].inset_axes([0.45, 0.45, 0.5, 0.5])
-        x = np.arange(len(before))
-        ax2.bar(x - 0.2, before, 0.4, label="before")
-        ax2.bar(x + 0.2, after, 0.4, label="after")
-        ax2.set_title("held-out tip error [%]", fontsize=8)
-        ax2.legend(fontsize=7)
-        axes[1].set(title="3b) ANSYS solid as measurements", xlabel="L-BFGS step", ylabel="loss [m^2]")
-    else:
-        print(f"no {args.data}: skipped 3b")
+    measured = pr.read_published_tip(args.data)
+    train_rows = np.isin(measured.theta_deg, (0, 30, 60, 90))
+    pick = lambda rows: pr.Measurements(*(a[rows] for a in measured))  # noqa: E731
+    train = pr.calibration_targets(pick(train_rows), beam)
+    held = pr.calibration_targets(pick(~train_rows), beam)
+    fit_b = cal.fit_static(train, NAMES)
+    error = lambda scale: 100 * np.abs(cal.evaluate(held, NAMES, scale)).reshape(-1, 2).sum(1) / pr.LENGTH  # noqa: E731
+    before, after = error(None), error(fit_b.scale)
+    print("3b) fitted to ANSYS solid on 0/30/60/90 deg: "
+          + ", ".join(f"{n} = {fit_b.values[n]:.4g} (x{s:.3f})" for n, s in zip(NAMES, fit_b.scale)))
+    print(f"    held-out tip error (15/45/75 deg): mean {before.mean():.3f} % -> "
+          f"{after.mean():.3f} %, max {before.max():.3f} % -> {after.max():.3f} %")
+    summary["ansys_held_out"] = {"fitted_scale": fit_b.scale.tolist(), "values": fit_b.values,
+                                 "error_before_percent": before.tolist(),
+                                 "error_after_percent": after.tolist()}
+    axes[1].semilogy(fit_b.loss_history, "o-", label="training loss")
+    ax2 = axes[1].inset_axes([0.45, 0.45, 0.5, 0.5])
+    x = np.arange(len(before))
+    ax2.bar(x - 0.2, before, 0.4, label="before")
+    ax2.bar(x + 0.2, after, 0.4, label="after")
+    ax2.set_title("held-out tip error [%]", fontsize=8)
+    ax2.legend(fontsize=7)
+    axes[1].set(title="3b) ANSYS solid as measurements", xlabel="L-BFGS step", ylabel="loss [m^2]")
     save(fig, args.out, "calibration.png")
     write_summary(args.out, summary)
     return 0

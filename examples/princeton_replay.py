@@ -4,7 +4,7 @@
 
 1. The seed's 25 cases (f0 = 4.448 N; root pitched by theta, vertical tip weight and
    gravity), deflections along the beam at r/L = 0.25, 0.5, 0.75, 1: Fig. 15 and a table.
-   The measured Princeton data are not available here (shared/data/princeton/README.md),
+   The measured Princeton data are not available here (simsoft_jax/data/princeton/README.md),
    so the seed's error figures cannot be recomputed against the experiment.
 2. In their place, eq. (112) at the tip against the ANSYS solid-element (3-D elasticity)
    predictions of the same geometry (no gravity, 2 and 3 lbf dead tip loads at 0-90 deg),
@@ -20,8 +20,9 @@ from _common import parse_args, write_summary
 
 from simsoft_jax import princeton as pr
 from simsoft_jax import princeton_figures as figs
+from simsoft_jax.data_files import data_path
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "princeton" / "model_predictions_tip.csv"
+DATA = data_path("princeton", "model_predictions_tip.csv")
 
 
 def main() -> int:
@@ -41,20 +42,16 @@ def main() -> int:
     summary = {"elements": elements, "converged": bool(sim.converged.all()),
                "theta_deg": sim.theta_deg.tolist(), "load_N": sim.load_N.tolist(),
                "tip_deflection_m": sim.deflection[:, -1].tolist()}
-    data = args.data
-    if data.is_file():
-        err = pr.errors(pr.read_published_tip(data), elements=elements, gravity=False)
-        out = args.out / "vs_ansys_solid"
-        out.mkdir(exist_ok=True)
-        pr.write_table(out / "tip_errors.csv", err.replay, err)
-        figs.station_errors(err, out / "fig16_errors.png")
-        figs.summary(err, out / "fig17_mean_errors.png")
-        figs.summary(err, out / "fig18_error_spread.png", spread=True)
-        print(f"vs ANSYS solid (no gravity, 14 tip cases): eq. (112) tip error mean "
-              f"{err.tip.mean():.3f} %, max {err.tip.max():.3f} %")
-        summary["ansys_tip_error_percent"] = err.tip.tolist()
-    else:
-        print(f"no {data}: skipped the ANSYS comparison")
+    err = pr.errors(pr.read_published_tip(args.data), elements=elements, gravity=False)
+    out = args.out / "vs_ansys_solid"
+    out.mkdir(exist_ok=True)
+    pr.write_table(out / "tip_errors.csv", err.replay, err)
+    figs.station_errors(err, out / "fig16_errors.png")
+    figs.summary(err, out / "fig17_mean_errors.png")
+    figs.summary(err, out / "fig18_error_spread.png", spread=True)
+    print(f"vs ANSYS solid (no gravity, 14 tip cases): eq. (112) tip error mean "
+          f"{err.tip.mean():.3f} %, max {err.tip.max():.3f} %")
+    summary["ansys_tip_error_percent"] = err.tip.tolist()
     write_summary(args.out, summary)
     return 0 if sim.converged.all() else 1
 

@@ -1,7 +1,7 @@
 """Minguet-Dugundji composite strips under tip weights: full 6x6 section stiffness with
 couplings, against both digitizations of the 1990 experiments.
 
-Data: ``shared/data/real/minguet_dugundji_composite_cantilever`` (README: set-up, sign
+Data: ``simsoft_jax/data/real/minguet_dugundji_composite_cantilever`` (README: set-up, sign
 conventions, caveats). Set-up as modelled in AeroBeams (the first digitization): length
 0.55 m, clamped, a dead vertical force ``-W e3`` (W = grams / 1000 x 9.80665 N) at the
 tip, displacements read at x1 = 0.500 m, the root turned by theta = 0 or 45 deg about the
@@ -24,16 +24,15 @@ from __future__ import annotations
 import csv
 import sys
 from collections import defaultdict
-from pathlib import Path
 
 import numpy as np
 
 from _common import parse_args, write_summary
 
 import simsoft_jax as sj
+from simsoft_jax.data_files import data_path
 
-DATA = (Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
-        / "minguet_dugundji_composite_cantilever")
+DATA = data_path("real", "minguet_dugundji_composite_cantilever")
 G = 9.80665
 L, STATION = 0.55, 0.5
 STRAINS = ("gamma11_ext", "2gamma12_shear2", "2gamma13_shear3", "kappa1_twist",

@@ -3,7 +3,7 @@ predictions against the published UM/NAST beam model and the measurements, and a
 command-line calibration of flap and torsional stiffness on half the tip masses with a
 prediction of the other half.
 
-Data: ``shared/data/real/pazy_wing_technion`` (read its README for the set-up and caveats).
+Data: ``simsoft_jax/data/real/pazy_wing_technion`` (read its README for the set-up and caveats).
 Model, from the files only:
 
 * 15 elements on the reference axis (44 % chord, 0.5498 m), one per data element, with
@@ -11,10 +11,9 @@ Model, from the files only:
   ``length``) so that properties and masses sit where the data put them; its
   4x4 stiffness ``[extension, twist, flap, edgewise]`` (K11..K44 with couplings) becomes
   the 6x6 section matrix by :func:`simsoft_jax.sections.beam4_stiffness` (shear-rigid data:
-  GA = 100 EA keeps shear strains negligible, below 1e-8 here; the tip deflection moves by
-  4e-8 of itself from GA = 1e4 EA, while the static solves take 4x fewer Newton
-  iterations: a stiffer shear puts the residual's round-off floor, ~eps GA, far above the
-  tolerance). Frames: world = the Nastran frame of the
+  its default GA = 100 EA keeps shear strains negligible, below 1e-8 here; the tip
+  deflection moves by 4e-8 of itself from GA = 1e4 EA, while the static solves take 4x
+  fewer Newton iterations). Frames: world = the Nastran frame of the
   data (X aft along the chord, Y spanwise, Z up); the rod's local x is +Y, local y = -X
   (towards the leading edge), local z = +Z, so flap bending is ``kappa_y`` and a positive
   rotation about local x lifts the leading edge (nose up, the data's positive twist).
@@ -34,12 +33,14 @@ Model, from the files only:
 
 The script writes the scene files (TOML), an observation file (mid-chord deflections and
 tip twists relative to the unloaded state, measurement std 0.5 mm / 0.1 deg, a guess:
-the data give none), split by tip mass (every other mass of each sweep held out), and
-runs ``simsoft-jax calibrate`` on one half and ``simsoft-jax predict`` on the other.
+the data give none; columns test, skin, tip_mass) and, per skin, runs ``simsoft-jax
+calibrate --hold-out-by tip_mass --within test``: flap and torsion stiffness fitted on the
+lighter half of each sweep's tip masses, the heavier half predicted (extrapolation).
 """
 from __future__ import annotations
 
 import csv
+import json
 import sys
 from pathlib import Path
 
@@ -49,17 +50,19 @@ from _common import parse_args, write_summary
 
 import simsoft_jax as sj
 from simsoft_jax import sections
-from simsoft_jax.calibration_groups import parse_groups, predict
+from simsoft_jax.data_files import data_path
+from simsoft_jax import observation_splits as splits
+from simsoft_jax.calibration_groups import groups_from_dict, parse_groups, predict
+from simsoft_jax.calibration_report import metrics
 from simsoft_jax.cli import main as cli
 from simsoft_jax.measurements import observation_set
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "pazy_wing_technion"
+DATA = data_path("real", "pazy_wing_technion")
 G = 9.80665
 CHORD = 0.1
 AXIS = 0.44          # reference axis, fraction of the chord from the leading edge
 BEHIND_TE = {0: 0.04, 1: 0.08}
-SHEAR = 1e2          # GA / EA of the shear-rigid data (see the module docstring)
-HEADER = "scene,rod,node,offset_x,offset_y,offset_z,quantity,value,std,reference\n"
+HEADER = "scene,rod,node,offset_x,offset_y,offset_z,quantity,value,std,reference,test,skin,tip_mass\n"
 
 
 def read_csv(name):
@@ -81,7 +84,7 @@ def wing_scene(skin: int, test: str, mass: float) -> dict:
                        [k["K12"], k["K22"], k["K23"], k["K24"]],
                        [k["K13"], k["K23"], k["K33"], k["K34"]],
                        [k["K14"], k["K24"], k["K34"], k["K44"]]])
-        K = sections.beam4_stiffness(K4, shear=(SHEAR * k["K11"], SHEAR * k["K11"]))
+        K = sections.beam4_stiffness(K4)
         segments.append({"elements": 1, "length": float(length),
                          "stiffness": {"matrix": K.tolist()},
                          "inertia": {"rhoA": 1e-9, "rhoJ": 0.0, "rhoIy": 0.0, "rhoIz": 0.0}})
@@ -105,15 +108,18 @@ def wing_scene(skin: int, test: str, mass: float) -> dict:
 
 
 def observation_rows(cases, value=None):
-    """Rows: mid-chord tip deflection (uz) and tip twist, relative to the 0 kg case."""
+    """Rows: mid-chord tip deflection (uz) and tip twist, relative to the 0 kg case, with
+    the columns test, skin and tip_mass (kg) for splits."""
     mid = -(0.5 - AXIS) * CHORD
     rows = []
     for test, skin, mass, uz, twist in cases:
         ref = f"{test}_skin{skin}_0.0kg"
         name = f"{test}_skin{skin}_{mass:.1f}kg"
-        rows.append(f"{name},wing,-1,0,{mid},0,uz,{uz!r},0.0005,{ref}")
+        tags = f"{test},{skin},{mass!r}"
+        rows.append(f"{name},wing,-1,0,{mid},0,uz,{uz!r},0.0005,{ref},{tags}")
         if twist is not None:
-            rows.append(f"{name},wing,-1,,,,tilt_y,{float(np.radians(twist))!r},{float(np.radians(0.1))!r},{ref}")
+            rows.append(f"{name},wing,-1,,,,tilt_y,{float(np.radians(twist))!r},"
+                        f"{float(np.radians(0.1))!r},{ref},{tags}")
     return rows
 
 
@@ -169,29 +175,33 @@ def main():
           + ", ".join(f"{q} {v * (1e3 if q == 'uz' else np.degrees(1)):.3g} "
                       f"{'mm' if q == 'uz' else 'deg'}" for q, v in err.items()))
 
-    # the command line alone: calibrate flap and torsion stiffness on every other tip mass
-    # (sorted per test and skin), predict the other half
-    order = {}
-    for test, skin, mass, *_ in cases:
-        order.setdefault((test, skin), []).append(mass)
-    held_masses = {(t, s, m) for (t, s), ms in order.items() for m in sorted(ms)[1::2]}
-    fit_rows, held_rows = [], []
-    for case in cases:
-        target = held_rows if case[:3] in held_masses else fit_rows
-        target.extend(observation_rows([case]))
-    (args.out / "calibration.csv").write_text(HEADER + "\n".join(fit_rows) + "\n")
-    (args.out / "held_out.csv").write_text(HEADER + "\n".join(held_rows) + "\n")
-    fitted = args.out / "fitted.json"
-    cal = ["calibrate", "--scenes", *paths, "--measurements", str(args.out / "calibration.csv"),
-           "--params", "EIy,GJ=0.5:2", "-o", str(fitted)]
-    print("simsoft-jax " + " ".join(cal[:1] + ["--scenes", "...", *cal[2 + len(paths):]]))
-    status = cli(cal)
-    pre = ["predict", "--fitted", str(fitted), "--scenes", *paths,
-           "--measurements", str(args.out / "held_out.csv")]
-    print("simsoft-jax " + " ".join(pre[:3] + ["--scenes", "...", *pre[4 + len(paths):]]))
-    status = status or cli(pre)
+    # the command line alone, per skin: calibrate flap and torsion stiffness on the lighter
+    # half of the tip masses (per test) and predict the heavier half
+    extrapolation, status = {}, 0
+    for skin in sorted({c[1] for c in cases}):
+        mine = [s for s in scenes if s.name.split("_")[1] == f"skin{skin}"]
+        skin_paths = [str(args.out / f"{s.name}.toml") for s in mine]
+        obs_skin = args.out / f"observations_skin{skin}.csv"
+        obs_skin.write_text(HEADER + "\n".join(observation_rows(
+            [c for c in cases if c[1] == skin])) + "\n")
+        fitted = args.out / f"fitted_skin{skin}.json"
+        cal = ["calibrate", "--scenes", *skin_paths, "--measurements", str(obs_skin),
+               "--params", "EIy,GJ=0.5:2", "--hold-out-by", "tip_mass", "--within", "test",
+               "-o", str(fitted)]
+        print("simsoft-jax " + " ".join(cal[:1] + ["--scenes", "...",
+                                                     *cal[2 + len(skin_paths):]]))
+        status = status or cli(cal)
+        groups, scale = groups_from_dict(json.loads(fitted.read_text()))
+        obs = observation_set(obs_skin, mine)
+        upper = splits.lower_upper(obs, "tip_mass", within="test")[1]
+        if upper.any():
+            held = obs.subset(upper)
+            extrapolation[f"skin{skin}"] = {
+                "scale": scale.tolist(),
+                "held_out": metrics(held, predict(held, groups, scale))}
     write_summary(args.out, {"max_relative_difference_to_UMNAST": rel,
-                             "rms_error_vs_measured": err, "cli_status": status})
+                             "rms_error_vs_measured": err, "lighter_to_heavier": extrapolation,
+                             "cli_status": status})
     return status
 
 

@@ -3,7 +3,7 @@ tendon pull, replayed with displacement-controlled tendons (statics).
 
     python examples/real_tdcr_tendon.py [--out out/real_tdcr_tendon] [--fast]
 
-Data: ../shared/data/real/tdcr_isir_nouredeen/tip_z_vs_tendon_pull_measured.csv (read its
+Data: simsoft_jax/data/real/tdcr_isir_nouredeen/tip_z_vs_tendon_pull_measured.csv (read its
 README). A Nitinol tube backbone (free length 0.25 m, OD 1.220 mm, ID 0.954 mm,
 E = 83 GPa "preliminary measured", nu = 0.33, rho = 6450 kg/m^3), upright (base at the
 origin, backbone along +z, gravity -9.81 m/s^2 along -z), three tendons at 6 mm from the
@@ -27,16 +27,15 @@ tendons give the same height by the robot's symmetry. Writes tip_heights.png and
 summary.json.
 """
 import csv
-from pathlib import Path
 
 import numpy as np
 
 import simsoft_jax as sj
+from simsoft_jax.data_files import data_path
 
 from _common import parse_args, save, write_summary
 
-DATA = (Path(__file__).resolve().parent.parent.parent / "shared" / "data" / "real" /
-        "tdcr_isir_nouredeen" / "tip_z_vs_tendon_pull_measured.csv")
+DATA = data_path("real", "tdcr_isir_nouredeen", "tip_z_vs_tendon_pull_measured.csv")
 LENGTH, OFFSET = 0.25, 6e-3
 ANGLES_DEG = (0.0, 120.0, 240.0)
 

@@ -12,12 +12,17 @@ the scale (``EIy@0-5=0.5:2``). A small TOML file gives the same::
     rod = "wing"            # optional: every rod
     elements = [0, 5]       # optional: every element (inclusive range)
     bounds = [0.5, 2.0]     # optional: scale bounds
+    prior = [1.0, 0.2]      # optional: Gaussian prior on log(scale): [scale, log std]
     name = "EIy root"       # optional label
 
 The residual of row k is ``(predicted_k - value_k) / std_k``
 (:func:`simsoft_jax.measurements.read_observations`); predictions come from the static
-equilibria of all scenes (solved per structure in one vmapped call, gradients by the
-implicit function theorem); the fit is :func:`simsoft_jax.calibration.minimize`.
+equilibria of the scenes the rows use (solved per structure and solver settings in one
+vmapped call, compiled once per layout and reused; gradients by the implicit function
+theorem); the fit is projected Levenberg-Marquardt
+(:func:`simsoft_jax.least_squares.least_squares`) with optional Gaussian priors per group
+and a smoothness prior between neighbouring groups (:func:`prior_rows`); uncertainty and
+identifiability: :mod:`simsoft_jax.calibration_report`.
 """
 from __future__ import annotations
 
@@ -33,9 +38,12 @@ import numpy as np
 
 from . import lie
 from ._xla import jit
-from .calibration import PARAMETERS, minimize, scale_stiffness
+from .calibration import PARAMETERS, scale_stiffness
+from .calibration_report import information
+from .least_squares import Outcome, least_squares
 from .measurements import ObservationSet
-from .statics import StaticSettings, solve_static
+from .statics import StaticSettings, as_traced, solve_static
+from .status import describe
 
 _GROUP = re.compile(r"^([A-Za-z]+)(?:@(?:([A-Za-z_][\w.-]*):)?(?:seg)?(-?\d+)(?:-(-?\d+))?)?"
                     r"(?:=([^:]+):(.+))?$")
@@ -44,13 +52,16 @@ _GROUP = re.compile(r"^([A-Za-z]+)(?:@(?:([A-Za-z_][\w.-]*):)?(?:seg)?(-?\d+)(?:
 class Group(NamedTuple):
     """A parameter scaled on a set of elements: label, param (a :data:`PARAMETERS`
     name), rod (None: every rod), first/last element (inclusive, None: every element),
-    bounds (lo, hi) on the scale or None."""
+    bounds (lo, hi) on the scale or None, prior (scale, log_std) or None: a Gaussian
+    prior on the log scale, mean ``log(scale)`` and standard deviation ``log_std``
+    (e.g. ``(1.0, 0.1)``: the scenes' value, give or take 10 %)."""
     label: str
     param: str
     rod: str | None = None
     first: int | None = None
     last: int | None = None
     bounds: tuple | None = None
+    prior: tuple | None = None
 
 
 def _check_group(g: Group, where: str) -> Group:
@@ -61,6 +72,11 @@ def _check_group(g: Group, where: str) -> Group:
         lo, hi = g.bounds
         if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo < hi):
             raise ValueError(f"{where}: bounds must satisfy 0 < lo < hi, got {lo}:{hi}")
+    if g.prior is not None:
+        if len(g.prior) != 2 or not all(isinstance(v, (int, float)) and math.isfinite(v)
+                                        and v > 0 for v in g.prior):
+            raise ValueError(f"{where}: prior must be [scale, log_std], both > 0, got "
+                             f"{list(g.prior)}")
     return g
 
 
@@ -103,10 +119,10 @@ def load_groups(path) -> tuple[Group, ...]:
     out = []
     for i, item in enumerate(items):
         where = f"groups: {path.name} groups[{i}]"
-        unknown = set(item) - {"param", "rod", "elements", "bounds", "name"}
+        unknown = set(item) - {"param", "rod", "elements", "bounds", "prior", "name"}
         if unknown:
             raise ValueError(f"{where}.{sorted(unknown)[0]}: unknown key (allowed: param, "
-                             "rod, elements, bounds, name)")
+                             "rod, elements, bounds, prior, name)")
         if "param" not in item:
             raise ValueError(f"{where}.param: required key missing")
         elements = item.get("elements")
@@ -116,11 +132,15 @@ def load_groups(path) -> tuple[Group, ...]:
         bounds = item.get("bounds")
         if bounds is not None and (not isinstance(bounds, list) or len(bounds) != 2):
             raise ValueError(f"{where}.bounds: must be [lo, hi]")
+        prior = item.get("prior")
+        if prior is not None and (not isinstance(prior, list) or len(prior) != 2):
+            raise ValueError(f"{where}.prior: must be [scale, log_std]")
         label = item.get("name") or item["param"] + (
             "" if elements is None else f"@{elements[0]}-{elements[1]}")
         out.append(_check_group(Group(str(label), item["param"], item.get("rod"),
                                       *(elements or (None, None)),
-                                      None if bounds is None else tuple(map(float, bounds))),
+                                      None if bounds is None else tuple(map(float, bounds)),
+                                      None if prior is None else tuple(prior)),
                                 where))
     return tuple(out)
 
@@ -169,17 +189,15 @@ def _incline(R):
     return jnp.arcsin(jnp.clip(R[:, 2, :], -1.0, 1.0))
 
 
-def predict_rows(obs: ObservationSet, R, p, R0, p0, base):
-    """Predicted value (n,) of every observation row from the equilibria: ``R, p``
-    (sum of nodes, 3, 3)/(.., 3) of all models concatenated, their start states ``R0,
-    p0``, ``base`` (S,) the first node of each model in the concatenation."""
-    base = jnp.asarray(base)
-    gi = base[obs.model] + obs.node
-    c = jnp.asarray(obs.offset)
+def predict_rows(rows: dict, R, p, R0, p0):
+    """Predicted value (n,) of every observation row from the equilibria ``R, p``
+    (sum of nodes, 3, 3)/(.., 3) of all models concatenated and their start states ``R0,
+    p0``; ``rows``: per row (n,) ``node`` and ``ref_node`` (indices in the
+    concatenation), ``has_ref``, ``kind``, ``component``, ``offset`` (n,3) (see
+    :class:`~simsoft_jax.measurements.ObservationSet`)."""
+    gi, gr, has_ref, c = rows["node"], rows["ref_node"], rows["has_ref"], rows["offset"]
     Ri = R[gi]
     xi = p[gi] + jnp.einsum("nij,nj->ni", Ri, c)
-    has_ref = jnp.asarray(obs.ref_model >= 0)
-    gr = base[np.maximum(obs.ref_model, 0)] + obs.ref_node
     Rr = jnp.where(has_ref[:, None, None], R[gr], R0[gi])
     pr = jnp.where(has_ref[:, None], p[gr], p0[gi])
     xr = pr + jnp.einsum("nij,nj->ni", Rr, c)
@@ -187,54 +205,124 @@ def predict_rows(obs: ObservationSet, R, p, R0, p0, base):
     rotation = jax.vmap(lambda a, b: lie.log_so3(a.T @ b))(Rr, Ri)
     tilt = _incline(Ri) - _incline(Rr)
     values = jnp.stack([position, xi - xr, rotation, tilt], axis=1)  # (n, 4 kinds, 3)
-    n = len(obs.kind)
-    return values[jnp.arange(n), obs.kind, obs.component]
+    return values[jnp.arange(gi.shape[0]), rows["kind"], rows["component"]]
 
 
-def residual_fn(obs: ObservationSet, groups: Sequence[Group],
-                settings: StaticSettings = StaticSettings()):
-    """``x -> (r (n,), ok)`` with ``r = (predicted - value) / std`` for group log scales x."""
-    by_structure: dict = {}
+class Problem(NamedTuple):
+    """An observation set and groups laid out for the compiled residual: data (a pytree
+    of arrays: per pack of scenes with one structure and one set of solver settings,
+    the stacked models, the group masks and the settings; the rows), order (S,) the
+    scene index (in ``obs.names``) of each solved scene, in the concatenation order."""
+    data: dict
+    order: np.ndarray
+
+
+def problem(obs: ObservationSet, groups: Sequence[Group],
+            settings: StaticSettings | None = None) -> Problem:
+    """Lay out ``obs`` for :func:`evaluate_problem`: the scenes grouped by structure and
+    solver settings (each scene's own ``[solver]`` table, or ``settings`` for all), one
+    vmapped solve per pack."""
+    packs: dict = {}
     for i, model in enumerate(obs.models):
-        by_structure.setdefault(model.structure, []).append(i)
-    packs = [(idx, _stack([obs.models[i] for i in idx]),
-              jnp.asarray(element_masks(groups, structure)))
-             for structure, idx in by_structure.items()]
-    sizes = [m.structure.n_nodes for m in obs.models]
-    base = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(int)
-    R0 = jnp.concatenate([m.R0 for m in obs.models])
-    p0 = jnp.concatenate([m.p0 for m in obs.models])
-    value, std = jnp.asarray(obs.value), jnp.asarray(obs.std)
+        own = obs.settings[i] if settings is None else settings
+        packs.setdefault((model.structure, own), []).append(i)
+    order = np.array([i for idx in packs.values() for i in idx], int)
+    sizes = np.array([obs.models[i].structure.n_nodes for i in order])
+    start = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(int)
+    base = np.empty(len(obs.models), int)
+    base[order] = start
+    has_ref = obs.ref_model >= 0
+    rows = {"node": base[obs.model] + obs.node,
+            "ref_node": np.where(has_ref, base[np.maximum(obs.ref_model, 0)] + obs.ref_node, 0),
+            "has_ref": has_ref, "kind": obs.kind, "component": obs.component,
+            "offset": obs.offset, "value": obs.value, "std": obs.std}
+    data = {"packs": tuple((_stack([obs.models[i] for i in idx]),
+                            jnp.asarray(element_masks(groups, structure)),
+                            as_traced(own))
+                           for (structure, own), idx in packs.items()),
+            "R0": jnp.concatenate([obs.models[i].R0 for i in order]),
+            "p0": jnp.concatenate([obs.models[i].p0 for i in order]),
+            "rows": {k: jnp.asarray(v) for k, v in rows.items()}}
+    return Problem(data, order)
 
-    def fn(x):
-        R, p, ok = [None] * len(sizes), [None] * len(sizes), jnp.array(True)
-        for idx, stacked, masks in packs:
-            eq = jax.vmap(lambda m: solve_static(apply_group_scales(m, masks, x), settings))(
-                stacked)
-            ok = ok & jnp.all(eq.converged)
-            for k, i in enumerate(idx):
-                R[i], p[i] = eq.R[k], eq.p[k]
-        pred = predict_rows(obs, jnp.concatenate(R), jnp.concatenate(p), R0, p0, base)
-        return (pred - value) / std, ok
 
-    return fn
+def _residuals(data, x):
+    """``(r, solves)``: normalized residuals (n,) and the solves' outcome per scene."""
+    R, p, solves = [], [], []
+    for models, masks, own in data["packs"]:
+        eq = jax.vmap(lambda m: solve_static(apply_group_scales(m, masks, x), own))(models)
+        R.append(eq.R.reshape(-1, 3, 3))
+        p.append(eq.p.reshape(-1, 3))
+        solves.append((eq.converged, eq.status, eq.cause, eq.load_level, eq.residual_norm))
+    rows = data["rows"]
+    pred = predict_rows(rows, jnp.concatenate(R), jnp.concatenate(p), data["R0"], data["p0"])
+    solves = tuple(jnp.concatenate(parts) for parts in zip(*solves))
+    return (pred - rows["value"]) / rows["std"], solves
+
+
+@jit
+def _residual_program(data, x):
+    return _residuals(data, x)
+
+
+@jit
+def _jacobian_program(data, x):
+    r, tangent, solves = jax.linearize(lambda y: _residuals(data, y), x, has_aux=True)
+    return r, jax.vmap(tangent, out_axes=1)(jnp.eye(x.shape[0], dtype=x.dtype)), solves
+
+
+def _check_solves(prob: Problem, names: Sequence[str], solves, what: str, x):
+    """Raise ``RuntimeError`` naming every scene whose solve failed, how and where."""
+    converged, status, cause, level, residual = (np.asarray(a) for a in solves)
+    if converged.all():
+        return
+    bad = [f"{names[prob.order[k]]}: " + describe("static", status[k], cause[k],
+                                                   float(level[k]), float(residual[k]))
+           for k in np.flatnonzero(~converged)]
+    raise RuntimeError(f"{what}: {len(bad)} static solve(s) failed at scales "
+                       f"{np.round(np.exp(np.clip(np.asarray(x), -700, 700)), 6).tolist()}: "
+                       + "; ".join(bad))
+
+
+def evaluate_problem(prob: Problem, names: Sequence[str], x, jacobian: bool = True,
+                     what: str = "calibration"):
+    """``(r (n,), J (n,P))`` (``J`` None unless ``jacobian``) at log scales ``x`` (P,):
+    normalized residuals ``(predicted - value) / std`` and ``dr/dx`` (forward mode through
+    the implicit-function derivative of every solve). The compiled programs depend only
+    on the packs' structures and sizes, so later calls (another fit, a prediction, a
+    subset of the same shape) reuse them. A failed solve raises ``RuntimeError`` naming
+    the scene (``names`` = ``obs.names``), the status and the load level reached."""
+    x = jnp.asarray(x, jnp.float64)
+    if jacobian:
+        r, J, solves = _jacobian_program(prob.data, x)
+    else:
+        (r, solves), J = _residual_program(prob.data, x), None
+    _check_solves(prob, names, solves, what, x)
+    return np.asarray(r), None if J is None else np.asarray(J)
 
 
 def predict(obs: ObservationSet, groups: Sequence[Group], scale=None,
-            settings: StaticSettings = StaticSettings()) -> np.ndarray:
-    """Predicted values (n,) of the rows with the groups' scales (default 1)."""
+            settings: StaticSettings | None = None) -> np.ndarray:
+    """Predicted values (n,) of the rows with the groups' scales (default 1); each
+    scene solved with its own ``[solver]`` settings unless ``settings`` is given."""
+    groups = tuple(groups)
     x = np.zeros(len(groups)) if scale is None else np.log(np.asarray(scale, float))
-    r, ok = jit(residual_fn(obs, groups, settings))(jnp.asarray(x))
-    if not bool(ok):
-        raise RuntimeError("predict: a static solve did not converge")
-    return np.asarray(r) * obs.std + obs.value
+    r, _ = evaluate_problem(problem(obs, groups, settings), obs.names, x, jacobian=False,
+                            what="predict")
+    return r * obs.std + obs.value
 
 
 class GroupFit(NamedTuple):
-    """Fitted groups: scale (P,), std (P,) of the scale, correlation (P,P) of the log
-    scales, covariance (P,P), value_range {label: (min, max) of the fitted parameter over
-    the group's elements in the first model}, residuals (n,) normalized by std, rms of the
-    unnormalized residuals, loss_history, converged, iterations."""
+    """Fitted groups: scale (P,), std (P,) of the scale (inf for a group the data
+    cannot identify), correlation (P,P) and covariance (P,P) of the log scales
+    (:mod:`simsoft_jax.calibration_report`, priors included), value_range {label: (min,
+    max) of the fitted parameter over the group's elements in the first model},
+    residuals (n,) of the data rows normalized by std, rms of the unnormalized
+    residuals, loss_history (accepted steps, 0.5 |r|^2 with the prior rows), converged
+    (the projected gradient vanished), iterations, outcome (how the minimization ended,
+    a :class:`~simsoft_jax.least_squares.Outcome` name), unidentified (labels of the
+    groups the data cannot determine), message (why, "" if none), eigenvalues of the
+    scaled information matrix, evaluations (solves of every scene, Jacobians included)."""
     groups: tuple
     scale: np.ndarray
     std: np.ndarray
@@ -246,45 +334,121 @@ class GroupFit(NamedTuple):
     loss_history: np.ndarray
     converged: bool
     iterations: int
+    outcome: str = ""
+    unidentified: tuple = ()
+    message: str = ""
+    eigenvalues: np.ndarray | None = None
+    evaluations: int = 0
 
     def to_dict(self) -> dict:
         """JSON-ready (``simsoft-jax predict --fitted`` reads it back)."""
+        finite = lambda a: [float(v) if np.isfinite(v) else None for v in a]  # noqa: E731
         return {"groups": [g._asdict() for g in self.groups],
-                "scale": self.scale.tolist(), "std_scale": self.std.tolist(),
+                "scale": self.scale.tolist(), "std_scale": finite(self.std),
                 "correlation": self.correlation.tolist(),
                 "covariance_log_scale": self.covariance.tolist(),
                 "value_range": {k: list(v) for k, v in self.value_range.items()},
                 "residuals_normalized": self.residuals.tolist(), "rms": self.rms,
                 "loss_history": self.loss_history.tolist(), "converged": self.converged,
-                "iterations": self.iterations}
+                "iterations": self.iterations, "outcome": self.outcome,
+                "unidentified": list(self.unidentified), "message": self.message}
 
 
 def groups_from_dict(d: dict) -> tuple[tuple[Group, ...], np.ndarray]:
     """(groups, scale) from :meth:`GroupFit.to_dict`."""
     try:
         groups = tuple(Group(**{**g, "bounds": None if g.get("bounds") is None
-                                else tuple(g["bounds"])}) for g in d["groups"])
+                                else tuple(g["bounds"]),
+                                "prior": None if g.get("prior") is None
+                                else tuple(g["prior"])}) for g in d["groups"])
         return groups, np.asarray(d["scale"], float)
     except (KeyError, TypeError) as err:
         raise ValueError(f"fitted: not a calibration result with groups ({err})") from None
 
 
-def fit_groups(obs: ObservationSet, groups: Sequence[Group], max_steps: int = 100,
-               gradient_tolerance: float = 1e-8,
-               settings: StaticSettings = StaticSettings()) -> GroupFit:
-    """Fit the groups' scales to the observations (bounds as given). The covariance
-    takes the rows' std as the noise (``(J^T J)^-1``) when the file gives them, else the
-    residual variance."""
+def prior_rows(groups: Sequence[Group], smoothness: float | None = None):
+    """``(A (m,P), b (m,))``: the prior residual rows ``A x - b`` on the log scales x:
+    one per group with a prior, ``(x_j - log scale_j) / log_std_j``, and with
+    ``smoothness`` (a log std) one per pair of neighbouring groups of the same parameter
+    and rod (ordered by first element), ``(x_j - x_k) / smoothness``: a random-walk prior
+    that ties per-section factors to their neighbours."""
+    P = len(groups)
+    A, b = [], []
+    for j, g in enumerate(groups):
+        if g.prior is not None:
+            A.append(np.eye(P)[j] / g.prior[1])
+            b.append(np.log(g.prior[0]) / g.prior[1])
+    if smoothness is not None:
+        if not (math.isfinite(smoothness) and smoothness > 0):
+            raise ValueError(f"smoothness: must be a log std > 0, got {smoothness}")
+        chains: dict = {}
+        for j, g in enumerate(groups):
+            if g.first is not None:
+                chains.setdefault((g.param, g.rod), []).append((g.first, j))
+        for chain in chains.values():
+            chain.sort()
+            for (_, j), (_, k) in zip(chain, chain[1:]):
+                A.append((np.eye(P)[j] - np.eye(P)[k]) / smoothness)
+                b.append(0.0)
+    return np.reshape(A, (len(A), P)), np.asarray(b, float)
+
+
+def fit_groups(obs: ObservationSet, groups: Sequence[Group], max_steps: int = 50,
+               gradient_tolerance: float = 1e-8, settings: StaticSettings | None = None,
+               smoothness: float | None = None, cost_tolerance: float = 1e-10) -> GroupFit:
+    """Fit the groups' scales to the observations by projected Levenberg-Marquardt
+    (:func:`simsoft_jax.least_squares.least_squares`) within the groups' bounds, with
+    their priors and the optional ``smoothness`` prior (:func:`prior_rows`). Each scene
+    is solved with its own ``[solver]`` settings unless ``settings`` is given; the
+    scenes of one structure and settings in one vmapped call, compiled once and reused
+    by later fits and predictions of the same layout. Uncertainty and identifiability:
+    :func:`simsoft_jax.calibration_report.information` (the rows' std as the noise when
+    the file gives them, else the residual variance); a group the data cannot determine
+    is named in ``unidentified`` with a ``message``. The fit ends when the gradient
+    vanishes (``gradient_tolerance``) or when a Gauss-Newton step could lower the cost by
+    less than ``cost_tolerance`` of it. A solve that fails at the start
+    raises ``RuntimeError`` naming the scene; failed trial steps are rejected."""
     groups = tuple(groups)
+    if not groups:
+        raise ValueError("params: name at least one parameter")
+    P = len(groups)
     lo = np.array([-np.inf if g.bounds is None else np.log(g.bounds[0]) for g in groups])
     hi = np.array([np.inf if g.bounds is None else np.log(g.bounds[1]) for g in groups])
+    A, b = prior_rows(groups, smoothness)
+    prob = problem(obs, groups, settings)
+    history, failure = [], []
+
+    def evaluate(U):
+        try:
+            r, J = evaluate_problem(prob, obs.names, U[0])
+        except RuntimeError as err:
+            failure.append(str(err))
+            n = len(obs.value) + len(b)
+            return np.full((1, n), np.nan), np.full((1, n, P), np.nan), np.array([False])
+        r = np.concatenate([r, A @ U[0] - b])
+        cost = 0.5 * float(r @ r)
+        if not history or cost < history[-1]:
+            history.append(cost)
+        return r[None], np.concatenate([J, A])[None], np.array([True])
+
+    x0 = np.clip(np.zeros(P), lo, hi)
+    sol = least_squares(evaluate, x0[None], lo[None], hi[None],
+                        lambda r: np.full(r.shape[0], np.inf), 0.0,
+                        "levenberg_marquardt", max_steps, gradient_tolerance, cost_tolerance)
+    outcome = Outcome(int(sol.outcome[0]))
+    if outcome == Outcome.SOLVE_FAILED:
+        raise RuntimeError(failure[0])
+    x, r, J = sol.u[0], sol.r[0], sol.J[0]
+    n = len(obs.value)
     given_std = bool(np.any(obs.std != 1.0))
-    x, history, r, converged, steps, _, cov, _ = minimize(
-        residual_fn(obs, groups, settings), np.clip(np.zeros(len(groups)), lo, hi), None,
-        max_steps, gradient_tolerance, 1.0 if given_std else None, (lo, hi))
+    variance = 1.0 if given_std else float(r[:n] @ r[:n]) / max(n - P, 1)
+    info = information(J, variance, [g.label for g in groups])
+    message = info.message
+    if info.unidentified and outcome not in (Outcome.REACHED, Outcome.STATIONARY):
+        message += (f"; the minimization did not settle ({outcome.name} after "
+                    f"{int(sol.steps[0])} steps) because of them: the cost keeps falling "
+                    f"slowly as they run off (scales {np.round(np.exp(x), 4).tolist()})")
     scale = np.exp(x)
-    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    corr = cov / np.maximum(np.outer(sd, sd), 1e-300)
     model = obs.models[0]
     masks = element_masks(groups, model.structure)
     K = np.asarray(model.stiffness)
@@ -294,9 +458,11 @@ def fit_groups(obs: ObservationSet, groups: Sequence[Group], max_steps: int = 10
         cols = list(PARAMETERS[g.param][1])
         vals = diag[masks[j, :, cols[0]] > 0, cols[0]] * scale[j]
         ranges[g.label] = (float(vals.min()), float(vals.max()))
-    return GroupFit(groups, scale, scale * sd, cov, corr, ranges, np.asarray(r),
-                    float(np.sqrt(np.mean((np.asarray(r) * obs.std) ** 2))),
-                    np.asarray(history), bool(converged), int(steps))
+    return GroupFit(groups, scale, scale * info.std_log, info.covariance, info.correlation,
+                    ranges, r[:n], float(np.sqrt(np.mean((r[:n] * obs.std) ** 2))),
+                    np.asarray(history), outcome in (Outcome.REACHED, Outcome.STATIONARY),
+                    int(sol.steps[0]), outcome.name, info.unidentified, message,
+                    info.eigenvalues, int(sol.evaluations[0]))
 
 
 def print_fit(fit: GroupFit, out=None):
@@ -315,3 +481,8 @@ def print_fit(fit: GroupFit, out=None):
         for j, g in enumerate(fit.groups):
             print(f"{g.label:>14s}  " + " ".join(f"{c:+.3f}" for c in fit.correlation[j]),
                   file=out)
+    if fit.unidentified:
+        print(f"NOT IDENTIFIED: {', '.join(fit.unidentified)}: {fit.message}", file=out)
+    elif not fit.converged:
+        print(f"the minimization ended without a stationary point ({fit.outcome} after "
+              f"{fit.iterations} steps)", file=out)

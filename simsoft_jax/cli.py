@@ -9,12 +9,16 @@
   equilibrium; prints the compile and the solve time separately;
 * ``validate SCENE``: check a scene file without solving it;
 * ``princeton``: the 25 load cases of the Princeton beam, a results table and figures
-  (the paper's Figs. 15-18 when ``--measurements`` are given);
+  (the paper's Figs. 15-18 against ``--measurements``; without them, Figs. 16-18 against
+  the shipped ANSYS solid-element predictions in ``OUT/vs_ansys_solid``, unless
+  ``--no-published``);
 * ``calibrate --scenes S... --measurements M.csv --params EIy,EIz,GJ -o fitted.json``:
   fit sectional parameters to measured positions; with an observation file (points at
   offsets, displacements, rotations/twist, reference cases, std), parameters by groups
-  (``EIy@0-5=0.5:2`` or ``--groups groups.toml``) and ``--split N`` (every N-th row held
-  out and predicted);
+  (``EIy@0-5=0.5:2`` or ``--groups groups.toml``, priors, ``--smoothness``), held-out
+  rows (``--split N``: every N-th row; ``--hold-out-by tip_mass [--hold-out
+  upper|lower|alternate] [--within test]``: by a column) predicted after the fit with
+  their errors per quantity, and groups the data cannot identify named with the reason;
 * ``predict --fitted fitted.json --scenes S... --measurements held_out.csv``: per-row
   predictions and errors with a fitted result;
 * ``bench [--quick] [--only NAMES] [--out DIR]``: the benchmark suite of the source
@@ -196,8 +200,33 @@ def _princeton(args) -> int:
     if errors is not None:
         print(f"average mean error {errors.e_mu.mean():.4f} % +- {errors.e_mu.std():.4f}; "
               f"average tip error {errors.tip.mean():.4f} % +- {errors.tip.std():.4f}")
+    if not args.measurements and not args.no_published:
+        try:
+            figures += _princeton_published(args.elements, out / "vs_ansys_solid")
+        except (ValueError, RuntimeError) as err:
+            print(f"error: {err}", file=sys.stderr)
+            return 2
     print("wrote " + ", ".join(str(p) for p in [table, *figures]))
     return 0 if replay.converged.all() else 1
+
+
+def _princeton_published(elements: int, out: Path) -> list:
+    """Eq. (112) at the tip against the shipped ANSYS solid-element predictions (no
+    gravity, dead tip loads; model output, see the data README): table and Figs. 16-18
+    in ``out``; prints the tip errors. Returns the written paths."""
+    from . import princeton
+    from .data_files import data_path
+    from .princeton_figures import summary, station_errors
+    err = princeton.errors(princeton.read_published_tip(
+        data_path("princeton", "model_predictions_tip.csv")), elements, gravity=False)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = [princeton.write_table(out / "tip_errors.csv", err.replay, err),
+             station_errors(err, out / "fig16_errors.png"), summary(err, out / "fig17_mean_errors.png"),
+             summary(err, out / "fig18_error_spread.png", spread=True)]
+    print(f"vs ANSYS solid elements (published model output, no gravity, "
+          f"{len(err.tip)} tip cases): eq. (112) tip error mean {err.tip.mean():.4f} %, "
+          f"max {err.tip.max():.4f} %")
+    return paths
 
 
 def _calibrate(args) -> int:
@@ -205,7 +234,7 @@ def _calibrate(args) -> int:
     from .calibration import fit_static
     from .measurements import is_observation_file, static_targets
     from .scene import load_scene
-    if args.groups or args.split or (Path(args.measurements).is_file()
+    if args.groups or args.split or args.hold_out_by or (Path(args.measurements).is_file()
                                      and is_observation_file(args.measurements)):
         return _calibrate_observations(args)
     try:
@@ -246,23 +275,42 @@ def _print_rows(obs, predicted, title):
           f"{np.sqrt(np.mean((err / obs.std) ** 2)):.4g}")
 
 
+def _held_out(args, obs) -> np.ndarray:
+    """Rows (n,) held out of the fit: every ``--split``-th row, or by a column
+    (``--hold-out-by``, ``--hold-out``, ``--within``; :mod:`simsoft_jax.observation_splits`)."""
+    from . import observation_splits
+    held = np.zeros(len(obs.rows), bool)
+    if args.split and args.hold_out_by:
+        raise ValueError("split: give --split or --hold-out-by, not both")
+    if args.split:
+        if args.split < 2:
+            raise ValueError(f"split: must be >= 2 (every N-th row held out), got {args.split}")
+        held[args.split - 1::args.split] = True
+    elif args.hold_out_by:
+        within = [c for c in (args.within or "").split(",") if c]
+        if args.hold_out == "alternate":
+            held = observation_splits.alternate(obs, args.hold_out_by, within)[1]
+        else:
+            lower, upper = observation_splits.lower_upper(obs, args.hold_out_by, within)
+            held = upper if args.hold_out == "upper" else lower
+    return held
+
+
 def _calibrate_observations(args) -> int:
     """``calibrate`` with an observation file, groups (``--params`` items or ``--groups``
     TOML) and an optional ``--split N`` (every N-th row held out and predicted)."""
     import json
     from .calibration_groups import fit_groups, load_groups, parse_groups, predict, print_fit
+    from .calibration_report import metrics
     try:
         if not args.params and not args.groups:
             raise ValueError("params: give --params or --groups")
         groups = (load_groups(args.groups) if args.groups else ()) + (
             parse_groups(args.params) if args.params else ())
         obs = _observations(args, args.measurements)
-        held = np.zeros(len(obs.rows), bool)
-        if args.split:
-            if args.split < 2:
-                raise ValueError(f"split: must be >= 2 (every N-th row held out), got {args.split}")
-            held[args.split - 1::args.split] = True
-        fit = fit_groups(obs.subset(~held), groups, max_steps=args.max_steps)
+        held = _held_out(args, obs)
+        fit = fit_groups(obs.subset(~held), groups, max_steps=args.max_steps,
+                         smoothness=args.smoothness)
         held_pred = predict(obs.subset(held), groups, fit.scale) if held.any() else None
     except (ValueError, RuntimeError) as err:
         print(f"error: {err}", file=sys.stderr)
@@ -271,7 +319,10 @@ def _calibrate_observations(args) -> int:
     print(f"rms residual {fit.rms:.4g} over {int((~held).sum())} fitted rows; loss "
           f"{fit.loss_history[0]:.4g} -> {fit.loss_history[-1]:.4g} in {fit.iterations} steps")
     if held_pred is not None:
-        _print_rows(obs.subset(held), held_pred, "held-out rows (--split)")
+        _print_rows(obs.subset(held), held_pred, "held-out rows")
+        for quantity, m in metrics(obs.subset(held), held_pred).items():
+            print(f"held-out {quantity}: {m['n']} rows, rms {m['rms']:.4g}, max "
+                  f"{m['max_abs']:.4g}, mean {m['mean']:.4g}, rms/std {m['rms_over_std']:.3g}")
     if args.output:
         Path(args.output).write_text(json.dumps(fit.to_dict(), indent=1))
         print(f"wrote {args.output}")
@@ -310,9 +361,17 @@ def _add_calibration_commands(sub):
     p_cal.add_argument("--params", help="e.g. EIy,EIz,GJ (or E,G); with an observation "
                        "file also groups EIy@0-5, EIy@wing:0-5, bounds EIy@0-5=0.5:2")
     p_cal.add_argument("--groups", help="TOML file of [[groups]] (param, rod, elements, "
-                       "bounds, name)")
+                       "bounds, prior, name)")
     p_cal.add_argument("--split", type=int, default=0,
                        help="hold out every N-th row (N >= 2) and predict it after the fit")
+    p_cal.add_argument("--hold-out-by", help="a column of the observation file (e.g. "
+                       "tip_mass): hold out whole values of it and predict them after the fit")
+    p_cal.add_argument("--hold-out", choices=("upper", "lower", "alternate"), default="upper",
+                       help="which values of --hold-out-by: the upper or lower half, or every "
+                       "other one (default upper: calibrate light, predict heavy)")
+    p_cal.add_argument("--within", help="columns whose values split separately, e.g. test")
+    p_cal.add_argument("--smoothness", type=float, help="log std of the differences of "
+                       "neighbouring groups of one parameter (a smoothness prior)")
     p_cal.add_argument("--max-steps", type=int, default=100,
                        help="optimizer steps at most (default 100)")
     p_cal.add_argument("-o", "--output", help="fitted parameters (.json)")
@@ -398,6 +457,9 @@ def main(argv=None) -> int:
     p_pr.add_argument("--stations", default="0.25,0.5,0.75,1",
                       help="stations r/L, comma separated (default 0.25,0.5,0.75,1)")
     p_pr.add_argument("--measurements", help="measured deflections CSV (simsoft_jax.princeton)")
+    p_pr.add_argument("--no-published", action="store_true",
+                      help="skip the comparison with the shipped ANSYS solid-element "
+                           "predictions (made when no --measurements are given)")
     p_pr.add_argument("--out", default="out/princeton", help="output folder")
     p_pr.set_defaults(func=_princeton)
     _add_calibration_commands(sub)

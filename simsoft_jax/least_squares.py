@@ -24,7 +24,10 @@ Two methods (the gradient is ``g = J^T r`` in both):
 A problem ends as ``REACHED`` when its ``error(r)`` is at most ``tolerance``; as
 ``STATIONARY`` when the projected gradient falls below ``gradient_tolerance * |J| |r|``
 (a stationary point of the cost above the tolerance: with the box, a point where only
-bounds stop the descent); as ``STALLED`` when no step lowers the cost any more (``lam``
+bounds stop the descent), or, with ``cost_tolerance > 0`` (Levenberg-Marquardt), when
+the Gauss-Newton model of a step predicts a decrease below ``cost_tolerance`` times the
+cost (Moré 1978's relative-reduction test: the cost is as low as the residuals' own
+round-off lets one tell); as ``STALLED`` when no step lowers the cost any more (``lam``
 above 1e12, or a line search that halved 30 times); ``MAX_STEPS`` after ``max_steps``
 iterations; ``SOLVE_FAILED`` when the residual cannot be evaluated at the start point.
 """
@@ -84,9 +87,25 @@ def _lm_step(J, r, lam, pinned):
     return np.linalg.solve(A, rhs[..., None])[..., 0] * free
 
 
+def _gauss_newton_decrease(J, r, pinned):
+    """(B,) the largest decrease of the cost the linear model ``r + J du`` allows over
+    the free variables: ``0.5 |r|^2 - min 0.5 |r + J du|^2`` (least squares, rank
+    deficient allowed)."""
+    out = np.empty(len(r))
+    for b in range(len(r)):
+        Jf = J[b][:, ~pinned[b]]
+        if Jf.shape[1] == 0:
+            out[b] = 0.0
+            continue
+        du = np.linalg.lstsq(Jf, -r[b], rcond=None)[0]
+        rest = r[b] + Jf @ du
+        out[b] = 0.5 * (r[b] @ r[b] - rest @ rest)
+    return out
+
+
 def least_squares(evaluate: Callable, u0, lower, upper, error: Callable, tolerance: float,
                   method: str = "levenberg_marquardt", max_steps: int = 50,
-                  gradient_tolerance: float = 1e-6) -> Solution:
+                  gradient_tolerance: float = 1e-6, cost_tolerance: float = 0.0) -> Solution:
     """Solve the batch of bounded least-squares problems described in the module doc.
 
     evaluate: ``U (B,P) -> (r (B,n), J (B,n,P), ok (B,))``. u0, lower, upper: (B,P) (the
@@ -122,6 +141,13 @@ def least_squares(evaluate: Callable, u0, lower, upper, error: Callable, toleran
         running = outcome == Outcome.RUNNING
         if lbfgs is None:
             _, pinned = projected_gradient(U, g, lower, upper)
+            if cost_tolerance > 0.0:
+                flat = running & (_gauss_newton_decrease(np.nan_to_num(J), np.nan_to_num(r),
+                                                         pinned) <= cost_tolerance * cost)
+                outcome[flat] = Outcome.STATIONARY
+                running &= ~flat
+                if not running.any():
+                    break
             trial = np.clip(U + _lm_step(np.nan_to_num(J), np.nan_to_num(r), lam, pinned),
                             lower, upper)
             trial = np.where(running[:, None], trial, U)

@@ -25,6 +25,7 @@ import numpy as np
 
 from .calibration import StaticTarget
 from .model import build_model
+from .statics import settings_from_scene
 
 COLUMNS = ("scene", "rod", "node", "x", "y", "z")
 
@@ -140,7 +141,9 @@ KINDS = ("position", "displacement", "rotation", "tilt")
 
 
 class Observation(NamedTuple):
-    """One row of an observation file (see :func:`read_observations`)."""
+    """One row of an observation file (see :func:`read_observations`); columns: the
+    row's other cells ``{column: text}`` (e.g. ``tip_mass``), for splits
+    (:meth:`ObservationSet.column`)."""
     line: int
     scene: str
     rod: str
@@ -150,6 +153,7 @@ class Observation(NamedTuple):
     value: float
     std: float
     reference: str | None
+    columns: dict = {}
 
 
 def is_observation_file(path) -> bool:
@@ -181,7 +185,8 @@ def _number(path, line, row, key, default=_REQUIRED, positive=False):
 
 
 def read_observations(path) -> list[Observation]:
-    """Rows of an observation CSV (header required; extra columns are ignored)::
+    """Rows of an observation CSV (header required; extra columns, e.g. ``tip_mass``,
+    are kept per row for splits)::
 
         scene,rod,node,offset_x,offset_y,offset_z,quantity,value,std,reference
         bend_1.0kg,wing,-1,0.0,0.03,0.0,uz,-0.0811,0.0005,bend_0kg
@@ -216,21 +221,25 @@ def read_observations(path) -> list[Observation]:
                   f"{', '.join(QUANTITIES)})")
         offset = tuple(_number(path, line, row, f"offset_{a}", 0.0) for a in "xyz")
         reference = (row.get("reference") or "").strip() or None
+        extra = {k: (v or "").strip() for k, v in row.items()
+                 if k not in OBSERVATION_COLUMNS + OPTIONAL_COLUMNS and k is not None}
         rows.append(Observation(line, row["scene"].strip(), row["rod"].strip(), node,
                                 offset, quantity, _number(path, line, row, "value"),
                                 _number(path, line, row, "std", 1.0, positive=True),
-                                reference))
+                                reference, extra))
     return rows
 
 
 class ObservationSet(NamedTuple):
     """Observation rows resolved against scenes. models: one Model per scene used (rows'
-    scenes and references), in ``names`` order; per row (n,): model (index), node
+    scenes and references), in ``names`` order; settings: each scene's static solver
+    settings (its ``[solver]`` table); per row (n,): model (index), node
     (global node index in its model), ref_model (-1: the model's own start state),
     ref_node, kind (index in :data:`KINDS`), component (0..2), offset (n,3), value,
     std; rows: the :class:`Observation` tuples; path: the file."""
     names: tuple
     models: tuple
+    settings: tuple
     model: np.ndarray
     node: np.ndarray
     ref_model: np.ndarray
@@ -244,12 +253,42 @@ class ObservationSet(NamedTuple):
     path: str
 
     def subset(self, keep) -> "ObservationSet":
-        """The rows where ``keep`` (n,) is True (same models)."""
+        """The rows where ``keep`` (n,) is True, with only the scenes they use (their own
+        and their references'), so that a fit or a prediction solves only those."""
         keep = np.asarray(keep, bool)
+        if keep.shape != self.value.shape:
+            raise ValueError(f"keep: must have one entry per row ({len(self.value)}), got "
+                             f"shape {keep.shape}")
         arrays = {f: getattr(self, f)[keep] for f in ("model", "node", "ref_model",
                                                         "ref_node", "kind", "component",
                                                         "offset", "value", "std")}
-        return self._replace(rows=tuple(r for r, k in zip(self.rows, keep) if k), **arrays)
+        used = np.union1d(arrays["model"], arrays["ref_model"][arrays["ref_model"] >= 0])
+        new = np.full(len(self.models), -1)
+        new[used] = np.arange(len(used))
+        arrays["model"] = new[arrays["model"]]
+        arrays["ref_model"] = np.where(arrays["ref_model"] >= 0,
+                                       new[np.maximum(arrays["ref_model"], 0)], -1)
+        return self._replace(names=tuple(self.names[i] for i in used),
+                             models=tuple(self.models[i] for i in used),
+                             settings=tuple(self.settings[i] for i in used),
+                             rows=tuple(r for r, k in zip(self.rows, keep) if k), **arrays)
+
+    def column(self, name: str) -> np.ndarray:
+        """The values (n,) of a column of the file per row (floats when every cell is a
+        number, else strings); ``scene`` and ``quantity`` are columns too. A missing
+        column or an empty cell is a ``ValueError`` naming it."""
+        if name in ("scene", "quantity", "rod", "reference"):
+            return np.array([getattr(r, name) or "" for r in self.rows])
+        missing = [r.line for r in self.rows if not r.columns.get(name)]
+        if missing:
+            known = sorted(self.rows[0].columns) if self.rows else []
+            raise ValueError(f"by: {Path(self.path).name} has no value in column {name!r} "
+                             f"on line(s) {missing[:5]} (extra columns: {known})")
+        cells = [r.columns[name] for r in self.rows]
+        try:
+            return np.array([float(c) for c in cells])
+        except ValueError:
+            return np.array(cells)
 
 
 def observation_set(path, scenes: Sequence) -> ObservationSet:
@@ -288,7 +327,8 @@ def observation_set(path, scenes: Sequence) -> ObservationSet:
         kind, component = QUANTITIES[row.quantity]
         cols["kind"].append(KINDS.index(kind))
         cols["component"].append(component)
-    return ObservationSet(tuple(names), tuple(models),
+    settings = tuple(settings_from_scene(by_name[n].solver) for n in names)
+    return ObservationSet(tuple(names), tuple(models), settings,
                           **{k: np.array(v, int) for k, v in cols.items()},
                           offset=np.array([r.offset for r in rows], float),
                           value=np.array([r.value for r in rows], float),

@@ -267,7 +267,7 @@ def read_measurements(path) -> Measurements:
 def read_published_tip(path, source_prefix: str = "ANSYS_solid") -> Measurements:
     """Tip deflections of a published model as Princeton measurements at ``r = L``.
 
-    path: ``shared/data/princeton/model_predictions_tip.csv`` (its README: model output,
+    path: ``data_path("princeton", "model_predictions_tip.csv")`` (:mod:`simsoft_jax.data_files`) (its README: model output,
     no gravity, dead tip force, unsigned flap and edge deflections); rows whose
     ``source_id`` starts with ``source_prefix``. The flap deflection becomes ``-y`` and
     the edge deflection ``-z`` (the loads of :func:`case_model` point along

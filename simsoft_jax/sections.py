@@ -324,7 +324,10 @@ def coupled_stiffness(diagonal, couplings=None) -> np.ndarray:
     return stiffness_matrix(K)
 
 
-def beam4_stiffness(K4, shear=(1e3, 1e3), signs=(1.0, 1.0, 1.0, 1.0)) -> np.ndarray:
+RIGID_SHEAR_FACTOR = 100.0   # GA / EA that beam4_stiffness takes for shear-rigid data
+
+
+def beam4_stiffness(K4, shear=None, signs=(1.0, 1.0, 1.0, 1.0)) -> np.ndarray:
     """(6,6) stiffness from the 4x4 beam stiffness of strain-based aeroelastic beam codes.
 
     ``K4`` (4,4) symmetric, strains ``[extension, twist, out-of-plane (flap) bending,
@@ -335,9 +338,15 @@ def beam4_stiffness(K4, shear=(1e3, 1e3), signs=(1.0, 1.0, 1.0, 1.0)) -> np.ndar
     local y (``kappa_y``, the tip moves along z) and edgewise bending about local z
     (``kappa_z``). The 4 strains go to ``[eps_x, kappa_x, kappa_y, kappa_z]`` with the
     optional ``signs`` (+-1 per source strain) when the source's axes point the other way
-    (a coupling ``K_ij`` changes sign with ``signs[i] signs[j]``). Shear-rigid sources give
-    no shear stiffness: ``shear = (GAy, GAz)`` (N) sets it, large enough that shear
-    strains stay negligible (checked positive definite).
+    (a coupling ``K_ij`` changes sign with ``signs[i] signs[j]``).
+
+    Shear-rigid sources give no shear stiffness. ``shear = (GAy, GAz)`` (N) sets it;
+    ``None`` takes ``GA = 100 K11`` (:data:`RIGID_SHEAR_FACTOR` times the extension
+    stiffness) for both, so that the shear part of a cantilever's tip deflection,
+    ``P L / GA`` (Timoshenko), is ``3 EI / (GA L^2) = 0.03 EI / (K11 L^2)`` of the bending
+    part ``P L^3 / (3 EI)``: for a slender beam (``EI / K11`` the squared radius of
+    gyration) far below any measurement, while the Newton residual's round-off floor
+    (about eps GA) stays far below the solver tolerance. Checked positive definite.
     """
     K4 = np.asarray(K4, dtype=float)
     if K4.shape != (4, 4):
@@ -346,5 +355,8 @@ def beam4_stiffness(K4, shear=(1e3, 1e3), signs=(1.0, 1.0, 1.0, 1.0)) -> np.ndar
     K = np.zeros((6, 6))
     rows = np.array([0, 3, 4, 5])
     K[np.ix_(rows, rows)] = K4 * np.outer(s, s)
+    if shear is None:
+        rigid = RIGID_SHEAR_FACTOR * check_number("K4[0][0]", K4[0, 0])
+        shear = (rigid, rigid)
     K[1, 1], K[2, 2] = (check_number("shear[0]", shear[0]), check_number("shear[1]", shear[1]))
     return stiffness_matrix(K)

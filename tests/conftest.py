@@ -44,8 +44,6 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES_DIR = REPO_ROOT / "examples"
 SCENES_DIR = EXAMPLES_DIR / "scenes"
 NOTEBOOKS_DIR = REPO_ROOT / "notebooks"
-# shared/ sits beside the repository (as on CI and in the developers' checkout)
-SHARED_DIR = REPO_ROOT.parent / "shared"
 
 sys.path.insert(0, str(REPO_ROOT))
 os.environ["PYTHONPATH"] = os.pathsep.join(

@@ -26,9 +26,8 @@ ELEMENTS = 8
 NAMES = ("EIy", "EIz", "GJ")
 
 # ANSYS solid-element tip deflections (m) of the Princeton geometry without gravity,
-# (flap, edge) for theta = 0, 15, ..., 90 deg: shared/data/princeton/model_predictions_tip.csv
-# rows ANSYS_solid_F2 / F3 (Obrezkov, Mikkola, Matikainen et al., Nonlinear Dyn. 109, 2022),
-# copied here so that the test runs without shared/.
+# (flap, edge) for theta = 0, 15, ..., 90 deg: simsoft_jax/data/princeton/model_predictions_tip.csv
+# rows ANSYS_solid_F2 / F3 (Obrezkov, Mikkola, Matikainen et al., Nonlinear Dyn. 109, 2022).
 ANSYS_SOLID = {
     8.896: [(0.0, 0.01069752828), (0.04101165651, 0.01057180106), (0.07696749069, 0.009938278402),
             (0.105976311, 0.008686786771), (0.127251299, 0.006500006282),

@@ -64,7 +64,7 @@ def test_cli_calibrates_groups_and_predicts_held_out_rows(tmp_path, capsys):
     np.testing.assert_allclose(fitted["scale"], list(TRUE.values()), rtol=1e-6)
     assert "EIy@seg0-1: scale 0.80000" in printed and "correlations" in printed
     assert "EIy 3.2" in printed                    # the fitted value, 0.8 x 4.0 N m^2
-    assert "held-out rows (--split): 4 rows" in printed
+    assert "held-out rows: 4 rows" in printed
     # predict the held-out rows with the fitted file: errors at round-off
     held = [HEADER.strip()] + [ln for i, ln in enumerate(lines) if i % 4 == 3]
     (tmp_path / "held.csv").write_text("\n".join(held) + "\n")

@@ -147,9 +147,18 @@ def test_every_case_needs_every_station(tmp_path):
 
 
 def test_princeton_command_writes_table_and_figures(tmp_path, capsys, seed_replay):
-    """``simsoft-jax princeton``: the 25 cases; with measurements, Figs. 15-18 and errors."""
+    """``simsoft-jax princeton``: the 25 cases and, by default, the tip errors against the
+    shipped ANSYS solid-element predictions (below the paper's 1 %); with measurements,
+    Figs. 15-18 and errors."""
     out = tmp_path / "out"
     assert main(["princeton", "--elements", str(ELEMENTS), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "vs ANSYS solid elements" in printed and "14 tip cases" in printed
+    with open(out / "vs_ansys_solid" / "tip_errors.csv") as handle:
+        tip_errors = [float(r["error_percent"]) for r in csv.DictReader(handle)
+                      if float(r["station_m"]) == pr.LENGTH]
+    assert len(tip_errors) == 14 and 0.0 < max(tip_errors) < 1.0
+    assert (out / "vs_ansys_solid" / "fig17_mean_errors.png").stat().st_size > 10_000
     with open(out / "princeton_replay.csv") as handle:
         rows = list(csv.DictReader(handle))
     assert len(rows) == 25 * 4

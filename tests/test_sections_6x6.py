@@ -252,3 +252,45 @@ def test_beam4_helper_axis_mapping():
     assert K[1, 1] == 1e8 and K[2, 2] == 2e8
     assert K[0, 5] == K[5, 0] == 5.4e4 and K[3, 4] == -0.107 and K[0, 3] == 0.6
     assert not np.any(K[1:3, [0, 3, 4, 5]])
+
+
+def _cantilever_tip(K, elements, L=0.55, P=1e-3):
+    """Tip deflection (m) along local z of a clamped straight rod with section K under a
+    small tip force P (N) along z (linear range: deflection ~ 2e-5 L)."""
+    rod = {"name": "arm", "elements": elements, "stiffness": matrix_key(K), "inertia": INERTIA,
+           "geometry": {"kind": "straight", "length": L}}
+    d = {"solver": {"kind": "static", "tolerance": 1e-13}, "rods": [rod],
+         "constraints": [{"kind": "clamp", "rod": "arm", "node": 0}],
+         "loads": [{"kind": "force", "rod": "arm", "node": -1, "vector": [0.0, 0.0, P]}]}
+    eq = sj.solve_static(sj.build_model(sj.Scene.from_dict(d)))
+    assert bool(eq.converged)
+    return float(eq.p[-1][2])
+
+
+def test_beam4_default_shear_is_negligible_timoshenko_cantilever():
+    """Closed form: a cantilever's tip deflection is ``P L^3 / (3 EI) + P L / GA``
+    (Euler-Bernoulli plus Timoshenko's shear term). With the default shear of
+    ``beam4_stiffness`` the shear term is below 1e-7 of the bending term (the earlier default
+    GA = 1e3 N added 4.6 % here); with a soft explicit GA the difference of the two tip
+    deflections is exactly the shear term (constant shear strain, no discretization
+    error), and the Richardson-extrapolated bending term is Euler-Bernoulli's."""
+    L, P, EA, EI = 0.55, 1e-3, 1e7, 4.6
+    K4 = np.diag([EA, 7.0, EI, 3300.0])
+    rigid = sections.beam4_stiffness(K4)
+    assert rigid[1, 1] == rigid[2, 2] == sections.RIGID_SHEAR_FACTOR * EA
+    bending = P * L**3 / (3 * EI)
+    coarse, fine = _cantilever_tip(rigid, 8), _cantilever_tip(rigid, 16)
+    extrapolated = (4 * fine - coarse) / 3                   # O(h^2) discretization
+    assert extrapolated == pytest.approx(bending + P * L / rigid[2, 2], rel=2e-6)
+    assert P * L / rigid[2, 2] < 1e-7 * bending
+    soft = _cantilever_tip(sections.beam4_stiffness(K4, shear=(100.0, 100.0)), 16)
+    assert soft - fine == pytest.approx(P * L / 100.0 - P * L / rigid[2, 2], rel=1e-6)
+
+
+def test_beam4_rejects_a_bad_extension_or_shear():
+    K4 = np.diag([1e7, 7.0, 4.6, 3300.0])
+    with pytest.raises(ValueError, match=r"shear\[1\]"):
+        sections.beam4_stiffness(K4, shear=(1e3, 0.0))
+    K4[0, 0] = -1.0
+    with pytest.raises(ValueError, match=r"K4\[0\]\[0\]"):
+        sections.beam4_stiffness(K4)

@@ -1,5 +1,5 @@
 """Static benchmarks against published numbers (spec: shared/spec/algorithm.md §7.1,
-shared/data/princeton/README.md and model_predictions_tip.csv).
+simsoft_jax/data/princeton/README.md and model_predictions_tip.csv).
 
 1. Princeton beam geometry, no gravity, with the constants the published models used
    (Exudyn ``pythonDev/TestModels/ANCFBeamTest.py``, cases 3/4; ANSYS beam numbers from
@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj  # enables float64
+from simsoft_jax.data_files import data_path
 import jax
 import jax.numpy as jnp
-from conftest import SHARED_DIR
 
 # ------------------------------------------------------------------------ Princeton set-up
 L = 0.508
@@ -40,8 +40,8 @@ THETAS = (0, 15, 30, 45, 60, 75, 90)
 LOADS = {"F2": 8.896, "F3": 13.345}
 
 # Tip deflections (m) as (flap = along the thin direction, edge = along the height),
-# copied from shared/data/princeton/model_predictions_tip.csv (flap_deflection_m,
-# edge_deflection_m; signs dropped) so that the tests run without shared/.
+# copied from simsoft_jax/data/princeton/model_predictions_tip.csv (flap_deflection_m,
+# edge_deflection_m; signs dropped)
 EXUDYN_NE16 = {  # Exudyn ObjectANCFBeam, 16 elements (ANCFBeamTest.py lines 395-411)
     "F2": [(0.0, 0.0107023), (0.0421374, 0.0106295), (0.0794434, 0.0101861),
            (0.1089703, 0.0089529), (0.1297877, 0.0067182), (0.1420319, 0.0036079),
@@ -60,7 +60,7 @@ ANSYS_BEAM = {  # ANSYS beam elements, Obrezkov et al. 2022 (ANCFBeamTest.py 375
            (0.181861627, 0.011578375), (0.196097131, 0.006248967384),
            (0.200677707, 0.0)],
 }
-CSV = SHARED_DIR / "data" / "princeton" / "model_predictions_tip.csv"
+CSV = data_path("princeton", "model_predictions_tip.csv")
 
 # Default solver settings. (Before commit c8ab6f6 the default damping needed up to 1528
 # Newton iterations for one of these cases, 108 s for the 14-case batch; now 21-46.)
@@ -194,9 +194,8 @@ def test_princeton_discretization_16_vs_64_elements():
         assert rel.max() < 2.5e-3, (i, rel)
 
 
-@pytest.mark.skipif(not CSV.exists(), reason="shared/data/princeton not available")
 def test_princeton_reference_table_matches_csv():
-    """The tables above are the published numbers in the shared data file."""
+    """The tables above are the published numbers in the shipped data file."""
     rows = list(csv.DictReader(CSV.open()))
     for prefix, table in (("Exudyn_ANCFBeam_ne16_", EXUDYN_NE16), ("ANSYS_beam_", ANSYS_BEAM)):
         for tag in LOADS:
