@@ -4,7 +4,7 @@
 
 a) Identifiability: node positions of the Princeton beam (no gravity, seven load angles,
    four stations) simulated with EI_y, EI_z, GJ scaled by (1.2, 0.85, 1.1), plus noise of
-   1 % of the rms deflection, are fitted from the seed's values by L-BFGS through the
+   1 % of the rms deflection, are fitted from the paper's values by L-BFGS through the
    implicit-function gradients; the fitted factors are compared with the truth and the
    Gauss-Newton standard deviations.
 b) The ANSYS solid-element predictions (3-D elasticity, simsoft_jax/data/princeton) used as

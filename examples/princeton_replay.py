@@ -1,15 +1,15 @@
-"""Princeton beam replay (seed Figs. 15-18): the 25 load cases in one vmapped call.
+"""Princeton beam replay (the paper's Figs. 15-18): the 25 load cases in one vmapped call.
 
     python examples/princeton_replay.py [--out DIR] [--fast] [--data CSV]
 
-1. The seed's 25 cases (f0 = 4.448 N; root pitched by theta, vertical tip weight and
+1. The paper's 25 cases (f0 = 4.448 N; root pitched by theta, vertical tip weight and
    gravity), deflections along the beam at r/L = 0.25, 0.5, 0.75, 1: Fig. 15 and a table.
    The measured Princeton data are not available here (simsoft_jax/data/princeton/README.md),
-   so the seed's error figures cannot be recomputed against the experiment.
+   so the paper's error figures cannot be recomputed against the experiment.
 2. In their place, eq. (112) at the tip against the ANSYS solid-element (3-D elasticity)
    predictions of the same geometry (no gravity, 2 and 3 lbf dead tip loads at 0-90 deg),
-   with the seed's section constants: Figs. 16-18 of that comparison. The ANSYS set-up
-   (shear coefficients 1, a torsion stiffness factor) differs from the seed's section, so
+   with the paper's section constants: Figs. 16-18 of that comparison. The ANSYS set-up
+   (shear coefficients 1, a torsion stiffness factor) differs from the paper's section, so
    the errors measure the beam model against 3-D elasticity, not against the experiment.
 """
 from pathlib import Path

@@ -190,9 +190,9 @@ def _princeton(args) -> int:
           f"gravity {'off' if args.no_gravity else 'on'}, deflections "
           f"{'relative to self-weight' if args.relative else 'absolute'}; "
           f"all converged: {bool(replay.converged.all())}")
-    print(" theta  load/f0   tip y [mm]   tip z [mm]" + ("   e_mu [%]  tip e [%]" if errors else ""))
+    print(" theta  load [N]   tip y [mm]   tip z [mm]" + ("   e_mu [%]  tip e [%]" if errors else ""))
     for c in range(len(replay.theta_deg)):
-        line = (f"{replay.theta_deg[c]:6g}  {replay.load_N[c] / princeton.F0:7.3g}  "
+        line = (f"{replay.theta_deg[c]:6g}  {replay.load_N[c]:8.4g}  "
                 f"{1e3 * replay.deflection[c, -1, 0]:11.4f}  {1e3 * replay.deflection[c, -1, 1]:11.4f}")
         if errors is not None:
             line += f"  {errors.e_mu[c]:9.4f}  {errors.tip[c]:9.4f}"

@@ -7,7 +7,7 @@ nodes placed at the fractions ``u`` (n+1,) of the arc length (0 = base, 1 = tip;
 have their own lengths). Local x is the centreline tangent.
 
 * straight, arc and helix are curves of constant strain ``f0`` and are placed exactly:
-  ``H(s) = exp(s f0)`` (seed eq. 3 with constant f, spec S25, S32), so helical elements
+  ``H(s) = exp(s f0)`` (the paper's eq. 3 with constant f, spec S25, S32), so helical elements
   represent them without discretization error.
   - arc of radius ``r``: ``f0 = [1, 0, 0, 0, 0, 1/r]`` (bends toward local +y);
   - helix of radius ``a`` and pitch ``c`` (rise per turn), ``b = c / 2 pi``: curvature
@@ -72,7 +72,7 @@ def _atan_ratio(s, c):
 
 def log_se3_np(R, p):
     """NumPy SE(3) logarithm of poses ``(R, p)`` (..., 3, 3), (..., 3): twists
-    ``[T_SO3^-T(w) p; w]`` (..., 6) (seed eq. 126, spec S13, S15), ``w`` of angle in
+    ``[T_SO3^-T(w) p; w]`` (..., 6) (the paper's eq. 126, spec S13, S15), ``w`` of angle in
     [0, pi] from the unit quaternion (Shepperd's pivot: the largest of the trace and the
     diagonal), ``T_SO3^-T(w) = I - W/2 + g2 W^2`` with ``g2 = (1 - (phi/2) cot(phi/2)) /
     phi^2`` (spec S6; its series below phi = 1 rad, spec S24). Used once per model build

@@ -1,4 +1,4 @@
-"""The Princeton beam experiment (seed "Experimental validation"; spec algorithm.md §7.1).
+"""The Princeton beam experiment (the paper's "Experimental validation"; spec algorithm.md §7.1).
 
 An Al 7075 strip (L = 0.508 m, b = 3.2024 mm along local y, h = 12.377 mm along local z)
 is clamped with its root pitched by ``theta`` about the beam axis; a weight hangs from the
@@ -9,13 +9,13 @@ axes y, z) they point along ``(0, -sin theta, -cos theta)``:
 * theta = 0 loads the stiff direction (edgewise, ``EI_y``: motion in x-z);
 * theta = 90 deg loads the flexible direction (flapwise, ``EI_z``: motion in x-y).
 
-The seed's 25 load cases (f0 = 4.448 N = 1 lbf) are :data:`LOAD_CASES`. Deflections are the
+The paper's 25 load cases (f0 = 4.448 N = 1 lbf) are :data:`LOAD_CASES`. Deflections are the
 displacements ``(y, z)`` of the centroid at stations ``r_i`` along the beam, in the root
-section's axes, either absolute or relative to the self-weight state (the seed does not say
+section's axes, either absolute or relative to the self-weight state (the paper does not say
 which one the experiment reports; spec §7.1). All cases are solved in one compiled,
 vmapped call (:func:`replay`).
 
-Error measure (seed eq. 112): ``e_i = (|y(r_i) - y_ei| + |z(r_i) - z_ei|) / r_i * 100 %``;
+Error measure (the paper's eq. 112): ``e_i = (|y(r_i) - y_ei| + |z(r_i) - z_ei|) / r_i * 100 %``;
 per case ``e_mu`` and ``e_sigma`` are the mean and standard deviation of the four ``e_i`` and
 the tip error is ``e_i`` at ``r = L`` (:func:`errors`).
 
@@ -28,7 +28,7 @@ section's axes). ``y_m, z_m`` are the deflections measured with the root pitched
 +theta. The optional ``*_neg_theta_m`` columns are the raw deflections measured at -theta,
 each in that run's own root axes; the -theta set-up is the mirror image (y -> -y) of the
 +theta one, so the averaged deflections used by eq. (112) are
-``y_e = (y - y_neg) / 2`` and ``z_e = (z + z_neg) / 2`` (the seed's "averaged experimental
+``y_e = (y - y_neg) / 2`` and ``z_e = (z + z_neg) / 2`` (the paper's "averaged experimental
 deflections"; its Fig. 15 shows both signs).
 """
 from __future__ import annotations
@@ -50,13 +50,13 @@ from .sweeps import grid, static_sweep
 LENGTH = 0.508             # m (20 in)
 WIDTH = 3.2024e-3          # m, b, along local y
 HEIGHT = 12.377e-3         # m, h, along local z
-SHEAR_COEFFICIENTS = (0.590, 0.833)   # k_y, k_z (seed eq. 110, its ref. 60)
+SHEAR_COEFFICIENTS = (0.590, 0.833)   # k_y, k_z (the paper's eq. 110, its ref. 60)
 F0 = 4.448                 # N (1 lbf)
 GRAVITY = 9.81             # m/s^2
-DEFAULT_STATIONS = (0.25, 0.5, 0.75, 1.0)   # r_i / L (spec §7.1: not stated in the seed)
+DEFAULT_STATIONS = (0.25, 0.5, 0.75, 1.0)   # r_i / L (spec §7.1: not stated in the paper)
 
 # (theta in degrees, load in units of f0): theta = 0, 15, 30: f0..4 f0; 45: f0..3 f0;
-# 60: f0/2..2 f0; 75, 90: f0/2..3/2 f0 (seed "Experimental setup"; 25 cases)
+# 60: f0/2..2 f0; 75, 90: f0/2..3/2 f0 (the paper's "Experimental setup"; 25 cases)
 LOAD_CASES = tuple(
     [(th, k) for th in (0.0, 15.0, 30.0) for k in (1.0, 2.0, 3.0, 4.0)]
     + [(45.0, k) for k in (1.0, 2.0, 3.0)]
@@ -65,7 +65,7 @@ LOAD_CASES = tuple(
 
 
 def seed_cases() -> tuple[np.ndarray, np.ndarray]:
-    """The seed's 25 load cases: ``(theta_deg (25,), load_N (25,))``."""
+    """The paper's 25 load cases: ``(theta_deg (25,), load_N (25,))``."""
     cases = np.array(LOAD_CASES)
     return cases[:, 0], cases[:, 1] * F0
 
@@ -73,7 +73,7 @@ def seed_cases() -> tuple[np.ndarray, np.ndarray]:
 def scene(elements: int = 16, gravity: bool = True, stiffness=None) -> Scene:
     """The beam in its root section's axes with a placeholder tip force.
 
-    ``stiffness``: optional ``[EA, GAy, GAz, GJ, EIy, EIz]`` replacing the seed's section
+    ``stiffness``: optional ``[EA, GAy, GAz, GJ, EIy, EIz]`` replacing the paper's section
     values (eq. 110, from the rectangle, Al 7075 and k = (0.590, 0.833)). The load and
     gravity directions of a case are set by :func:`case_model`, so one compiled solver
     serves every case.
@@ -124,7 +124,7 @@ def station_deflections(R, p, index, fraction):
     """Centroid displacement ``(y, z)`` (m) at stations given by :func:`station_locations`.
 
     ``index`` (S,) element of each station, ``fraction`` (S,) position in it; the centroid
-    follows the element's helix (seed eq. 27), the reference centroid is ``(r, 0, 0)``
+    follows the element's helix (the paper's eq. 27), the reference centroid is ``(r, 0, 0)``
     (root at the origin). Returns shape ``(S, 2)``.
     """
     index = np.asarray(index)
@@ -170,7 +170,7 @@ def replay(theta_deg=None, load_N=None, elements: int = 16, gravity: bool = True
            warm_start: bool = False) -> Replay:
     """Solve the load cases in one compiled call (one compile per batch size).
 
-    theta_deg, load_N: (C,) arrays (default: the seed's 25 cases, :func:`seed_cases`).
+    theta_deg, load_N: (C,) arrays (default: the paper's 25 cases, :func:`seed_cases`).
     stations: r_i / L (default 0.25, 0.5, 0.75, 1). relative: subtract the self-weight
     deflection of each angle (needs ``gravity``; the self-weight states are solved in
     the same call). stiffness: optional section diagonal (see :func:`scene`). chunk,
@@ -306,7 +306,7 @@ def calibration_targets(measured: Measurements, model: Model) -> list:
 
 
 class Errors(NamedTuple):
-    """Seed eq. (112) per load case. theta_deg, load_N (C,); stations_m (S,);
+    """The paper's eq. (112) per load case. theta_deg, load_N (C,); stations_m (S,);
     e (C, S) in %; e_mu, e_sigma, tip (C,) in %; by_angle: {theta: (mean of e_mu,
     std of e_mu, mean tip error, std of tip errors)} (Figs. 17-18); replay: the
     simulated deflections at the measured cases and stations; measured (C, S, 2)."""

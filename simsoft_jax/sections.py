@@ -6,16 +6,16 @@ principal axes of the section and the rod's reference line is the section's cent
 ``Iy = ∫ z² dA`` is the second moment about local y (it resists bending about y, the tip then moves
 along z), ``Iz = ∫ y² dA``. Diagonals are ordered like the strains ``[γ; κ]``:
 
-* stiffness ``K = diag(EA, G k_y A, G k_z A, G J_t, E I_y, E I_z)``        (spec (S28), seed eq. (9));
-* inertia   ``M = rho diag(A, A, A, I_y + I_z, I_y, I_z)``                  (spec (S29), seed eq. (19));
+* stiffness ``K = diag(EA, G k_y A, G k_z A, G J_t, E I_y, E I_z)``        (spec (S28), the paper's eq. (9));
+* inertia   ``M = rho diag(A, A, A, I_y + I_z, I_y, I_z)``                  (spec (S29), the paper's eq. (19));
 * viscosity ``Upsilon = mu diag(3A, A, A, J_t, 3 I_y, 3 I_z)``              (spec (S28), §9 item 6).
 
 ``J_t`` is the Saint-Venant torsion constant (torsional stiffness ``G J_t``); the rotary inertia
 about the axis uses the polar moment ``J_p = I_y + I_z``. They coincide only for circles and tubes.
 
-Note on the Princeton beam (spec §7.1 and §9 item 14): the seed prints ``rho J = 3.034e-6 kg m``
+Note on the Princeton beam (spec §7.1 and §9 item 14): the paper prints ``rho J = 3.034e-6 kg m``
 (eq. (109)), but ``rho J_t = 3.04e-7`` and ``rho (I_y + I_z) = 1.446e-6 kg m``; neither matches.
-We use the polar value. Rotary inertia about the axis plays no role in statics, so the seed's
+We use the polar value. Rotary inertia about the axis plays no role in statics, so the paper's
 Princeton results are unaffected.
 """
 
@@ -108,7 +108,7 @@ def rectangle(width: float, height: float) -> Section:
     """Solid rectangle, ``width`` w along local y and ``height`` h along local z (m).
 
     ``A = w h``, ``I_y = w h³/12``, ``I_z = h w³/12``. Torsion constant (approximation used by the
-    seed, text after eq. (109), citing Roark's Formulas for Stress and Strain), with
+    the paper, text after eq. (109), citing Roark's Formulas for Stress and Strain), with
     ``a = max(w, h)``, ``b = min(w, h)``: ``J_t = a b³ [1/3 − 0.21 (b/a)(1 − b⁴/(12 a⁴))]``;
     within 0.2 % of Saint-Venant's series solution for every aspect ratio.
     """
@@ -140,8 +140,8 @@ def stiffness_diagonal(section: Section, material: Material,
                        shear_coefficients: tuple[float, float] | None = None) -> np.ndarray:
     """Sectional stiffness diagonal ``[EA, G k_y A, G k_z A, G J_t, E I_y, E I_z]``.
 
-    Units ``[N, N, N, N m², N m², N m²]`` (spec (S28), seed eq. (9)). ``shear_coefficients =
-    (k_y, k_z)`` overrides :meth:`Section.default_shear_coefficients` (e.g. the seed's
+    Units ``[N, N, N, N m², N m², N m²]`` (spec (S28), the paper's eq. (9)). ``shear_coefficients =
+    (k_y, k_z)`` overrides :meth:`Section.default_shear_coefficients` (e.g. the paper's
     (0.590, 0.833) for the Princeton beam, eq. (110)).
     """
     if shear_coefficients is None:
@@ -159,7 +159,7 @@ def stiffness_diagonal(section: Section, material: Material,
 def inertia_diagonal(section: Section, material: Material) -> np.ndarray:
     """Sectional inertia diagonal ``rho [A, A, A, I_y + I_z, I_y, I_z]``.
 
-    Units ``[kg/m, kg/m, kg/m, kg m, kg m, kg m]`` (spec (S29), seed eq. (19)); the rotary inertia
+    Units ``[kg/m, kg/m, kg/m, kg m, kg m, kg m]`` (spec (S29), the paper's eq. (19)); the rotary inertia
     about the axis uses the polar moment, not the torsion constant (see the module note).
     """
     rho, A = material.density, section.area
@@ -169,7 +169,7 @@ def inertia_diagonal(section: Section, material: Material) -> np.ndarray:
 def viscosity_diagonal(section: Section, material: Material) -> np.ndarray:
     """Kelvin-Voigt damping diagonal ``mu [3A, A, A, J_t, 3 I_y, 3 I_z]``.
 
-    Units ``[N s, N s, N s, N m² s, N m² s, N m² s]`` (spec (S28); seed eq. (9) corrected per spec
+    Units ``[N s, N s, N s, N m² s, N m² s, N m² s]`` (spec (S28); the paper's eq. (9) corrected per spec
     §9 item 6: an incompressible material has extensional viscosity 3 mu).
     """
     mu, A = material.viscosity, section.area

@@ -110,14 +110,7 @@ def test_help_texts_are_plain_and_complete():
         assert "--no-cache" in cli_help(command, "--no-cache")
 
 
-# cell ids of these two come with the work on the measured data sets, which owns them
-IDS_ELSEWHERE = ("04_princeton_and_calibration", "08_real_data")
-
-
-@pytest.mark.parametrize("notebook", [
-    pytest.param(p, marks=pytest.mark.xfail(reason="cell ids added where the notebook is "
-                                            "maintained")) if p.stem in IDS_ELSEWHERE else p
-    for p in sorted(NOTEBOOKS_DIR.glob("*.ipynb"))], ids=lambda p: p.stem)
+@pytest.mark.parametrize("notebook", sorted(NOTEBOOKS_DIR.glob("*.ipynb")), ids=lambda p: p.stem)
 def test_every_notebook_cell_has_an_id(notebook):
     """nbformat >= 4.5 requires a unique ``id`` per cell (a missing one is an error in
     future nbformat versions)."""

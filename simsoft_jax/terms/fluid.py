@@ -15,7 +15,7 @@ normal to it):
   moving through a fluid.
 
 The distributed force is integrated along the helical element with the velocity field
-``v(xi) = N(xi, d) v_e`` of seed eqs. 36, 40 (spec S38), which is also the virtual
+``v(xi) = N(xi, d) v_e`` of the paper's eqs. 36, 40 (spec S38), which is also the virtual
 displacement map: nodal forces ``sum_g w_g L N_g^T [f_g; 0]`` (3-point Gauss-Legendre).
 ``|u_n| u_n`` is differentiable at ``u_n = 0`` (value and derivative 0); the norm is
 taken with a double ``where`` so that its derivative is finite there too.
