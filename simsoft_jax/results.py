@@ -8,6 +8,8 @@ JAX's persistent compilation cache, :mod:`.compile_cache`) and returns a
 """
 from __future__ import annotations
 
+import functools
+
 import time
 import warnings
 from pathlib import Path
@@ -195,7 +197,6 @@ class Result:
             self.failed_at = None
         self._R = np.asarray(raw.R)
         self._p = np.asarray(raw.p)
-        self.contacts = contacts.report(model, self._R, self._p, self.time)
         self.slack_tendons = self._slack_tendons()
         if self.slack_tendons:
             note = (f"tendon{'s' * (len(self.slack_tendons) > 1)} "
@@ -210,6 +211,13 @@ class Result:
         s = self.model.structure
         return tuple(n for n, flag in zip(s.tendon_names, s.tendon_displaced)
                      if flag and np.min(self.tendon_tension(n)) < 0.0)
+
+    @functools.cached_property
+    def contacts(self) -> dict | None:
+        """The contact report (class docstring), computed from the result's frames at
+        the first read (:func:`simsoft_jax.contacts.report`): a run that never reads it
+        does not pay for it."""
+        return contacts.report(self.model, self._R, self._p, self.time)
 
     def _nodes(self, rod: str) -> slice:
         info = self.model.structure.rod(rod)
