@@ -20,6 +20,7 @@ from ..linalg import CoupledFactors, factorize_coupled, implicit_solve_coupled, 
 from ..drives import drive_turn, held_increments, slide_maps
 from ..statics import step_norm, weighted_norm
 from ..status import Status
+from .contact_time import unresolved
 from .memory import NewtonMemory, predicted_increment, remember_step
 from .residual import step_functions
 from .scheme import alpha_parameters
@@ -223,16 +224,22 @@ class Attempt(NamedTuple):
 
 def attempt(model, inert, settings, state, h, differentiable, memory) -> Attempt:
     """One generalized-alpha step of size h; an accepted step becomes the predictor's
-    history. With ``differentiable`` the increment carries the implicit derivative."""
+    history. With ``differentiable`` the increment carries the implicit derivative. A
+    converged step that an impact makes too long for its contact time ends with status
+    ``CONTACT_UNRESOLVED`` (:func:`~.contact_time.unresolved`)."""
     new_state = step_functions(model, inert, settings.rho_inf, state, h).new_state
     m, ine, se, st, hh, mem = jax.lax.stop_gradient((model, inert, settings, state, h, memory))
     res = newton_step(m, ine, se, st, hh, mem)
     w = res.w
     if differentiable:
         w = _implicit_increment(model, inert, settings, state, h, w, res.memory.multipliers)
-    ok = res.status == Status.CONVERGED
-    memory = remember_step(res.memory, st.vd, hh, ok)
-    return Attempt(new_state(w), res.iterations, res.status, res.residual, memory)
+    state1 = new_state(w)
+    # a converged step that an impact makes too long is refused (.contact_time)
+    status = jnp.where((res.status == Status.CONVERGED)
+                       & unresolved(m, st, jax.lax.stop_gradient(state1), hh),
+                       Status.CONTACT_UNRESOLVED, res.status)
+    memory = remember_step(res.memory, st.vd, hh, status == Status.CONVERGED)
+    return Attempt(state1, res.iterations, status, res.residual, memory)
 
 
 class Advance(NamedTuple):
