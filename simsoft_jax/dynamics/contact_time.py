@@ -8,7 +8,7 @@ throws it back with more energy than it came with (a rod dropped 0.05 m at dt = 
 on k = 1e9 climbed to 0.5 m). A step is *unresolved* when it is longer than
 ``t_c / RESOLUTION`` and a contact station (:func:`~simsoft_jax.terms.contact.stations`)
 touching an obstacle at its start or end moves along the obstacle's normal, at the
-speed it has at either end, by more than a tenth of the penalty's smoothing width
+speed it has at either end, by more than half the penalty's smoothing width
 ``eps`` in the step (an impact or a rebound; a rod resting or sliding on an obstacle
 does not move along the normal and is not affected). The station's velocity is
 interpolated linearly between the element's two nodes (the rotation's part across the
@@ -68,5 +68,5 @@ def unresolved(model, before, after, h) -> jax.Array:
     (pen0, vn0), (pen1, vn1) = stations(model, before), stations(model, after)
     eps = contact.SMOOTHING * model.contact_radius[:, None, None]
     touching = jnp.maximum(pen0, pen1) > 0.0
-    moving = jnp.maximum(jnp.abs(vn0), jnp.abs(vn1)) * h > 0.1 * eps
+    moving = jnp.maximum(jnp.abs(vn0), jnp.abs(vn1)) * h > 0.5 * eps
     return jnp.any(touching & moving) & (h * RESOLUTION > contact_time(model))
