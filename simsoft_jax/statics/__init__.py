@@ -131,16 +131,12 @@ def _watch(model: Model, c: _ContinuationState, converged, tangent):
     if not branch.watched(model.structure):
         return c.stable, jnp.array(False), zero
 
-    def check():
-        positive = branch.stable(tangent)
-        lost = converged & c.stable & ~positive
-        d = branch.increment(c.R_prev, c.p_prev, c.R, c.p)
-        kick = jax.lax.cond(any_lane(lost), lambda: branch.critical_kick(model, tangent, d),
-                            lambda: zero)
-        return positive, lost, kick
-
-    return jax.lax.cond(any_lane(converged), check,
-                        lambda: (c.stable, jnp.array(False), zero))
+    positive = jax.lax.cond(any_lane(converged), lambda: branch.stable(tangent),
+                            lambda: c.stable)
+    lost = converged & c.stable & ~positive
+    kick = jax.lax.cond(any_lane(lost), lambda: branch.critical_kick(
+        model, tangent, branch.increment(c.R_prev, c.p_prev, c.R, c.p)), lambda: zero)
+    return positive, lost, kick
 
 
 def continuing(settings: StaticSettings, c: _ContinuationState):
