@@ -10,8 +10,9 @@ iterations are not unrolled; the tangent of the converged solution is
 block-tridiagonal tangent through ``lax.custom_linear_solve`` (its transpose for reverse mode).
 
 The package: :mod:`.settings` (:class:`StaticSettings`, :class:`Equilibrium`),
-:mod:`.newton` (one Newton solve at a load level), and here the load continuation, the
-implicit derivative and :func:`solve_static`.
+:mod:`.newton` (one Newton solve at a load level), :mod:`.branch` (the stability watch
+between load levels that keeps the continuation on the stable branch past a critical
+load), and here the load continuation, the implicit derivative and :func:`solve_static`.
 """
 from __future__ import annotations
 
