@@ -62,11 +62,17 @@ def stations(model, state):
 def unresolved(model, before, after, h) -> jax.Array:
     """Whether the step of size ``h`` (s) from the state ``before`` to ``after``
     (:class:`~.scheme.State`) is an impact too fast for the step (module docstring);
-    False without obstacles."""
+    False without obstacles. The stations are evaluated only for a step longer than
+    ``t_c / RESOLUTION``."""
     if not model.structure.obstacle_kinds:
         return jnp.array(False)
-    (pen0, vn0), (pen1, vn1) = stations(model, before), stations(model, after)
-    eps = contact.SMOOTHING * model.contact_radius[:, None, None]
-    touching = jnp.maximum(pen0, pen1) > 0.0
-    moving = jnp.maximum(jnp.abs(vn0), jnp.abs(vn1)) * h > 0.5 * eps
-    return jnp.any(touching & moving) & (h * RESOLUTION > contact_time(model))
+
+    def impact():
+        (pen0, vn0), (pen1, vn1) = stations(model, before), stations(model, after)
+        eps = contact.SMOOTHING * model.contact_radius[:, None, None]
+        touching = jnp.maximum(pen0, pen1) > 0.0
+        moving = jnp.maximum(jnp.abs(vn0), jnp.abs(vn1)) * h > 0.5 * eps
+        return jnp.any(touching & moving)
+
+    # the stations are looked at only when the step is too long for the contact time
+    return jax.lax.cond(h * RESOLUTION > contact_time(model), impact, lambda: False)
