@@ -22,7 +22,7 @@ P_CR = np.pi**2 * EI / (4 * L**2)
 P, F = 2.0 * P_CR, -1e-5
 
 
-def column(crooked=1e-4, **solver):
+def column(crooked=1e-4, lateral=F, **solver):
     stiff = {"EA": 1e5, "GAy": 1e5, "GAz": 1e5, "GJ": 1.0, "EIy": EI, "EIz": EI}
     geometry = ({"kind": "polyline", "points": [[0, 0, 0], [L / 2, 0, crooked], [L, 0, 0]]}
                 if crooked else {"kind": "straight", "length": L})
@@ -31,7 +31,7 @@ def column(crooked=1e-4, **solver):
                       "inertia": {"rhoA": 1.0, "rhoJ": 1.0, "rhoIy": 1.0, "rhoIz": 1.0},
                       "geometry": geometry}],
             "constraints": [{"kind": "clamp", "rod": "c", "node": 0}],
-            "loads": [{"kind": "force", "rod": "c", "node": -1, "vector": [-P, 0.0, F],
+            "loads": [{"kind": "force", "rod": "c", "node": -1, "vector": [-P, 0.0, lateral],
                        "frame": "world"}]}
 
 
@@ -78,3 +78,22 @@ def test_perfect_column_has_no_side_and_stays_straight():
     tip = result.positions("c")[-1]
     assert abs(tip[1]) < 1e-12 and abs(tip[2]) < 1e-12
     assert result.stability == {"negative_eigenvalues": 2, "stable": False}
+
+
+def test_batched_lanes_each_take_their_own_stable_side():
+    """The flat continuation of batched sweeps under ``vmap``: two lanes with the lateral
+    load and crookedness mirrored (+-z) end on mirrored stable branches, one per side."""
+    import jax
+
+    from simsoft_jax.batched import solve_static_lane
+
+    base = sj.build_model(sj.Scene.from_dict(column()))
+    other = sj.build_model(sj.Scene.from_dict(column(crooked=-1e-4, lateral=-F)))
+    models = jax.tree_util.tree_map(lambda a, b: np.stack([a, b]), base, other)
+    settings = sj.statics.as_traced(sj.StaticSettings())
+    eq = jax.jit(jax.vmap(solve_static_lane, in_axes=(0, None)))(models, settings)
+    assert np.all(np.asarray(eq.converged))
+    x, z = elastica_tip((-6.0, -1.0))
+    tips = np.asarray(eq.p)[:, -1]
+    np.testing.assert_allclose(tips[0], [x, 0.0, z], atol=2e-3)
+    np.testing.assert_allclose(tips[1], [x, 0.0, -z], atol=2e-3)
