@@ -9,6 +9,7 @@ reference is the inextensible planar elastica solved here by shooting:
 ``EI theta'' = -(F cos theta + P sin theta)`` (theta the angle of the centreline from
 x toward z), ``theta(0) = 0``, ``theta'(L) = 0``, tip ``(int cos theta, int sin theta)``.
 """
+import jax
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
@@ -16,6 +17,7 @@ from scipy.optimize import brentq
 
 import simsoft_jax as sj
 from simsoft_jax import stability
+from simsoft_jax.batched import solve_static_lane
 
 L, EI = 1.0, 1.0
 P_CR = np.pi**2 * EI / (4 * L**2)
@@ -83,10 +85,6 @@ def test_perfect_column_has_no_side_and_stays_straight():
 def test_batched_lanes_each_take_their_own_stable_side():
     """The flat continuation of batched sweeps under ``vmap``: two lanes with the lateral
     load and crookedness mirrored (+-z) end on mirrored stable branches, one per side."""
-    import jax
-
-    from simsoft_jax.batched import solve_static_lane
-
     base = sj.build_model(sj.Scene.from_dict(column()))
     other = sj.build_model(sj.Scene.from_dict(column(crooked=-1e-4, lateral=-F)))
     models = jax.tree_util.tree_map(lambda a, b: np.stack([a, b]), base, other)
