@@ -23,6 +23,19 @@ def drive_poses(model, t):
     return R, model.p0[idx] + disp
 
 
+def drive_turn(model, t0, t1):
+    """Largest change (rad) over the drives of their tables' rotation vectors from ``t0``
+    to ``t1`` (s): the angle a driven node turns in that time for a drive about a fixed
+    axis. A step whose drives turn by pi or more cannot be told from a shorter turn (the
+    increment ``log(H_n^-1 H_c(t1))`` of :func:`held_increments` wraps); the dynamics
+    refuse steps that turn a node by pi/2 or more (status ``OFF_BRANCH``)."""
+    interp = jax.vmap(lambda tt, vals, t: jax.vmap(lambda col: jnp.interp(t, tt, col),
+                                                   in_axes=1)(vals), in_axes=(0, 0, None))
+    change = (interp(model.drive_times, model.drive_rotation, t1)
+              - interp(model.drive_times, model.drive_rotation, t0))
+    return jnp.max(jnp.linalg.norm(change, axis=1))
+
+
 def slide_maps(model, R_n, w):
     """Reduction of the sliding drive nodes to one unknown each, the slide ``ds`` along the
     world direction e. With the rotation increment fixed, ``p_{n+1} = p_n + R_n T_SO3^T w_U``

@@ -26,6 +26,7 @@ class Status(enum.IntEnum):
     NOT_RUN = 6          # no failure recorded (used as a cause when there was none)
     INTERRUPTED = 7      # a dynamic run's host driver stopped on KeyboardInterrupt (Ctrl-C)
     #                      between chunks (a static solve interrupted returns no result)
+    CONTACT_UNRESOLVED = 8  # a dynamic step hit an obstacle in less than a few steps' time
 
     @property
     def code(self) -> str:
@@ -43,6 +44,9 @@ _REASONS = {
                        "exponential map the solver stays on",
     Status.MAX_ATTEMPTS: "the continuation used all its attempts (max_attempts)",
     Status.NOT_RUN: "no Newton failure recorded",
+    Status.CONTACT_UNRESOLVED: "an impact on an obstacle lasts less than ten steps (contact "
+                                "time pi sqrt(rhoA/k) too short for the step: soften the "
+                                "contact stiffness or shorten dt)",
     Status.INTERRUPTED: "interrupted (KeyboardInterrupt, Ctrl-C); the states computed "
                         "before are kept",
 }

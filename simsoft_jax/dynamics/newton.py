@@ -17,9 +17,10 @@ import jax.numpy as jnp
 from .. import mechanisms
 from ..batched import any_lane, select
 from ..linalg import CoupledFactors, factorize_coupled, implicit_solve_coupled, solve_coupled
-from ..drives import held_increments, slide_maps
+from ..drives import drive_turn, held_increments, slide_maps
 from ..statics import step_norm, weighted_norm
 from ..status import Status
+from .contact_time import unresolved
 from .memory import NewtonMemory, predicted_increment, remember_step
 from .residual import step_functions
 from .scheme import alpha_parameters
@@ -93,9 +94,13 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     Approximating ``S_t`` changes only the convergence rate, not the solution (spec 4.4).
     Converged when the estimated distance to the solution, ``|dw| theta / (1 - theta)``
     with the observed contraction ``theta`` (``|dw|`` itself at the first iteration and
-    for ``theta`` above ``_CONTRACTION_LIMIT``), is below the tolerance. Fails (status)
+    for ``theta`` above ``_CONTRACTION_LIMIT``), is below the tolerance and every nodal
+    rotation increment, held nodes' included, is below pi/2. Fails (status)
     when a fresh matrix gives a non-finite correction (NONFINITE) or one that takes a
-    nodal rotation increment to pi/2 (OFF_BRANCH), or at ``max_iterations``
+    nodal rotation increment to pi/2 (OFF_BRANCH: the step turns a node too far to be
+    resolved; :func:`advance` sub-steps it; also, before any iteration, when a drive
+    turns by pi/2 or more in the step, :func:`~simsoft_jax.drives.drive_turn`), or at
+    ``max_iterations``
     (MAX_ITERATIONS). With joints the unknowns are ``w`` and the
     joint multipliers (index-3 form, Arnold & Bruls 2007: the constraints ``g(q_{n+1}) = 0``
     and forces ``G^T mu`` at ``t_{n+1}``), solved in the bordered system of
@@ -148,7 +153,10 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
         mu_new = jnp.where(keep, c.mu, c.mu + jnp.where(finite, dmu, 0.0))
         estimate = jnp.where(jnp.isfinite(c.previous) & (theta < _CONTRACTION_LIMIT),
                              size * theta / (1.0 - theta), size)
-        converged = ~reject & finite & (estimate <= settings.tolerance) & held(r_z)
+        # an increment off the branch is never accepted, however well it solves F = 0: a
+        # step that turns a node by pi/2 or more is not resolved (sub-stepped or reported)
+        converged = (~reject & finite & ~off_branch & (estimate <= settings.tolerance)
+                     & held(r_z))
         status = jnp.where(converged, Status.CONVERGED, _RUNNING)
         status = jnp.where((status == _RUNNING) & c.fresh & ~finite, Status.NONFINITE, status)
         status = jnp.where((status == _RUNNING) & c.fresh & off_branch, Status.OFF_BRANCH,
@@ -161,7 +169,10 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
                             jnp.where(reject | ~jnp.isfinite(c.previous), c.theta, theta))
 
     stale = memory.renew | (jnp.abs(memory.h - h) > 1e-9 * h)
-    init = _NewtonCarry(w0, jnp.array(0), jnp.array(_RUNNING), memory.factors, stale,
+    # drives that turn by pi/2 or more in the step: off the branch before any iteration
+    start = (jnp.where(drive_turn(model, state.t, fns.t1) >= 0.5 * jnp.pi, Status.OFF_BRANCH,
+                       _RUNNING) if model.structure.drive_nodes else _RUNNING)
+    init = _NewtonCarry(w0, jnp.array(0), jnp.asarray(start), memory.factors, stale,
                         jnp.array(jnp.inf), jnp.array(False), jnp.array(jnp.inf),
                         memory.multipliers, jnp.array(0.0))
     c = jax.lax.while_loop(lambda c: c.status == _RUNNING, body, init)
@@ -213,16 +224,22 @@ class Attempt(NamedTuple):
 
 def attempt(model, inert, settings, state, h, differentiable, memory) -> Attempt:
     """One generalized-alpha step of size h; an accepted step becomes the predictor's
-    history. With ``differentiable`` the increment carries the implicit derivative."""
+    history. With ``differentiable`` the increment carries the implicit derivative. A
+    converged step that an impact makes too long for its contact time ends with status
+    ``CONTACT_UNRESOLVED`` (:func:`~.contact_time.unresolved`)."""
     new_state = step_functions(model, inert, settings.rho_inf, state, h).new_state
     m, ine, se, st, hh, mem = jax.lax.stop_gradient((model, inert, settings, state, h, memory))
     res = newton_step(m, ine, se, st, hh, mem)
     w = res.w
     if differentiable:
         w = _implicit_increment(model, inert, settings, state, h, w, res.memory.multipliers)
-    ok = res.status == Status.CONVERGED
-    memory = remember_step(res.memory, st.vd, hh, ok)
-    return Attempt(new_state(w), res.iterations, res.status, res.residual, memory)
+    state1 = new_state(w)
+    # a converged step that an impact makes too long is refused (.contact_time)
+    status = jnp.where((res.status == Status.CONVERGED)
+                       & unresolved(m, st, jax.lax.stop_gradient(state1), hh),
+                       Status.CONTACT_UNRESOLVED, res.status)
+    memory = remember_step(res.memory, st.vd, hh, status == Status.CONVERGED)
+    return Attempt(state1, res.iterations, status, res.residual, memory)
 
 
 class Advance(NamedTuple):

@@ -10,8 +10,9 @@ iterations are not unrolled; the tangent of the converged solution is
 block-tridiagonal tangent through ``lax.custom_linear_solve`` (its transpose for reverse mode).
 
 The package: :mod:`.settings` (:class:`StaticSettings`, :class:`Equilibrium`),
-:mod:`.newton` (one Newton solve at a load level), and here the load continuation, the
-implicit derivative and :func:`solve_static`.
+:mod:`.newton` (one Newton solve at a load level), :mod:`.branch` (the stability watch
+between load levels that keeps the continuation on the stable branch past a critical
+load), and here the load continuation, the implicit derivative and :func:`solve_static`.
 """
 from __future__ import annotations
 
@@ -29,6 +30,7 @@ from ..loads import full_loads
 from ..model import Model
 from ..status import Status, raise_if_failed
 # the package's names, re-exported (batched sweeps, the dynamics, results import them here)
+from . import branch
 from .newton import (_RUNNING, _NewtonState, _newton, _no_tangent, _update,  # noqa: F401
                      level_tolerance, load_scale, max_load_step, newton_outcome, newton_pass,
                      newton_start, step_norm, weighted_norm)
@@ -49,7 +51,10 @@ class _ContinuationState(NamedTuple):
     increment dlam, counters, the residual at the last accepted level, and the status of
     the last failed Newton solve (cause); y, y_prev: the joint multipliers at lam and
     lam_prev; tangent: the chains' tangent blocks at (R, p) (zero before a level is
-    accepted)."""
+    accepted); stable: the tangent at the last accepted level is positive definite (False
+    before one is accepted: not known); kick: the branch-switching move (N,6) added to
+    the next trial's prediction (zero but right after a switch); kicked: a switch was
+    tried since the last accepted level (:mod:`.branch`)."""
     R: jax.Array
     p: jax.Array
     R_prev: jax.Array
@@ -66,16 +71,20 @@ class _ContinuationState(NamedTuple):
     residual: jax.Array
     cause: jax.Array
     tangent: tuple
+    stable: jax.Array
+    kick: jax.Array
+    kicked: jax.Array
 
 
 def trial_level(c: _ContinuationState):
-    """The next load level of the continuation and the secant prediction of its frames and
-    joint multipliers: ``(lam_try, R, p, y)``."""
+    """The next load level of the continuation and the secant prediction of its frames
+    (moved by ``c.kick`` after a branch switch) and joint multipliers:
+    ``(lam_try, R, p, y)``."""
     lam_try = c.lam + c.dlam
     lam_try = jnp.where(lam_try > 1.0 - 1e-9, 1.0, lam_try)  # no sliver step from round-off
     ratio = (lam_try - c.lam) / jnp.maximum(c.lam - c.lam_prev, 1e-300)
     ratio = jnp.where(c.accepted >= 1, ratio, 0.0)
-    Rs, ps = _secant(c.R, c.p, c.R_prev, c.p_prev, ratio)
+    Rs, ps = _update(*_secant(c.R, c.p, c.R_prev, c.p_prev, ratio), c.kick)
     return lam_try, Rs, ps, c.y + ratio * (c.y - c.y_prev)
 
 
@@ -83,8 +92,17 @@ def after_newton(model: Model, settings: StaticSettings, c: _ContinuationState, 
                  p, y, its, res, status, tangent) -> _ContinuationState:
     """The continuation carry after the Newton solve at ``lam_try`` ended with ``status``:
     a converged level is accepted and the increment grows by 1.5 after an easy solve (fewer
-    than 5 steps), up to :func:`max_load_step`; a failed one halves the increment."""
-    ok = status == Status.CONVERGED
+    than 5 steps), up to :func:`max_load_step`; a failed one halves the increment. A level
+    that converged to an unstable state right after a stable one is refused
+    (:mod:`.branch`): the increment is halved, and at its smallest the level is tried
+    once more from a prediction moved toward the stable branch; after that try it is
+    accepted."""
+    converged = status == Status.CONVERGED
+    stable_now, lost, kick = _watch(model, c, converged, tangent)
+    dlam_min = settings.min_step_fraction / settings.load_steps
+    refine = lost & (0.5 * c.dlam >= dlam_min)
+    switch = lost & ~refine & ~c.kicked & jnp.any(kick != 0.0)
+    ok = converged & ~refine & ~switch
     grow = jnp.where(its < 5, 1.5, 1.0)
     keep = lambda new, old: jnp.where(ok, new, old)  # noqa: E731
     return _ContinuationState(
@@ -93,11 +111,33 @@ def after_newton(model: Model, settings: StaticSettings, c: _ContinuationState, 
         lam_prev=keep(c.lam, c.lam_prev),
         lam=keep(lam_try, c.lam),
         dlam=jnp.where(ok, jnp.minimum(c.dlam * grow, max_load_step(model, settings)),
-                       0.5 * c.dlam),
+                       jnp.where(switch, c.dlam, 0.5 * c.dlam)),
         accepted=c.accepted + ok, failures=c.failures + (~ok),
         iterations=c.iterations + its, attempts=c.attempts + 1,
-        residual=keep(res, c.residual), cause=keep(c.cause, status),
-        tangent=jax.tree_util.tree_map(keep, tangent, c.tangent))
+        residual=keep(res, c.residual), cause=jnp.where(ok | converged, c.cause, status),
+        tangent=jax.tree_util.tree_map(keep, tangent, c.tangent),
+        stable=keep(stable_now, c.stable), kick=jnp.where(switch, kick, 0.0),
+        kicked=~ok & (c.kicked | switch))
+
+
+def _watch(model: Model, c: _ContinuationState, converged, tangent):
+    """``(stable, lost, kick)`` after a Newton solve that ended with tangent blocks
+    ``tangent`` (:mod:`.branch`): whether that tangent is positive definite, whether a
+    converged solve lost the stability of the last accepted level, and the
+    branch-switching move (N,6) for a lost one. The checks run only when some (batched)
+    lane converged, the move only when some lane lost stability."""
+    from ..batched import any_lane   # batched imports this package
+
+    zero = jnp.zeros_like(c.kick)
+    if not branch.watched(model.structure):
+        return c.stable, jnp.array(False), zero
+
+    positive = jax.lax.cond(any_lane(converged), lambda: branch.stable(tangent),
+                            lambda: c.stable)
+    lost = converged & c.stable & ~positive
+    kick = jax.lax.cond(any_lane(lost), lambda: branch.critical_kick(
+        model, tangent, branch.increment(c.R_prev, c.p_prev, c.R, c.p)), lambda: zero)
+    return positive, lost, kick
 
 
 def continuing(settings: StaticSettings, c: _ContinuationState):
@@ -117,7 +157,8 @@ def continuation_start(model: Model, settings: StaticSettings) -> _ContinuationS
         lam_prev=jnp.array(0.0), dlam=jnp.asarray(1.0 / settings.load_steps, jnp.float64),
         accepted=zero, failures=zero, iterations=zero, attempts=zero,
         residual=jnp.array(jnp.inf), cause=jnp.array(int(Status.NOT_RUN)),
-        tangent=_no_tangent(model.p0))
+        tangent=_no_tangent(model.p0), stable=jnp.array(False),
+        kick=jnp.zeros(model.p0.shape[:1] + (6,), model.p0.dtype), kicked=jnp.array(False))
 
 
 def continuation_result(settings: StaticSettings, c: _ContinuationState) -> Equilibrium:

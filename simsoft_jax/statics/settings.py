@@ -29,7 +29,9 @@ class StaticSettings:
       and grow by 1.5 after easy steps (fewer than 5 Newton steps) up to
       ``max_load_step``. By default that cap is ``1/load_steps`` itself, so a solve
       takes at least ``load_steps`` increments (the scene format's "minimum
-      continuation steps").
+      continuation steps"). A level that converges to an unstable state right after a
+      stable one is refused and halved too, down to the minimum, where the
+      continuation switches to the stable branch (:mod:`simsoft_jax.statics.branch`).
     max_load_step: None (default: ``1/load_steps``, see above), or the largest load
       increment (fraction of the full loads, in (0, 1]) the continuation may grow to:
       ``max_load_step=1`` lets an easy solve take fewer than ``load_steps`` increments
