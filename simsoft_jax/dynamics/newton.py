@@ -35,7 +35,7 @@ _CONTRACTION_LIMIT = 0.1
 # The matrix is also rebuilt at the start of the next step when the last correction of a
 # step contracted by more than this: a matrix that old would make the next step take a
 # third iteration and soon a rebuild mid-step (followed by a renewal: two builds).
-# Measured on the seed's helical scenes (300 steps; benchmarks/README.md, "Fewer matrix
+# Measured on the paper's helical scenes (300 steps; benchmarks/README.md, "Fewer matrix
 # builds"): with the 0.1 rebuild limit used before, renewal at 0.03 took the synthetic
 # scene from 894 to 778 Newton iterations and silicone from 1051 to 871 (0.01-0.05 all
 # gain); with it, a rebuild limit of 0.2 saves builds (synthetic 16.2 -> 15.0 ms).
