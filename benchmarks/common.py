@@ -129,7 +129,7 @@ def static_setup(scene: sj.Scene):
 def compile_static(model, settings):
     """(lowered, compiled) static solver for this model structure: the compiled program
     is called as ``compiled(model, settings)``."""
-    lowered = sj.statics._solve_static.lower(model, settings)
+    lowered = sj.statics.static_program.lower(model, settings)
     return lowered, lowered.compile()
 
 

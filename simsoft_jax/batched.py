@@ -38,15 +38,15 @@ from .model import Model
 from .statics import (Equilibrium, StaticSettings, after_newton, continuation_result,
                       continuation_start, continuing, equilibrium, load_scale,
                       newton_outcome, newton_pass, newton_start, trial_level)
-from .statics import _ContinuationState, _NewtonState, _RUNNING
+from .statics import ContinuationState, NewtonState, RUNNING
 
 
 class _FlatState(NamedTuple):
     """Carry of :func:`flat_continuation`: the continuation carry, the Newton carry of the
     level being solved (lam_try), whether the next pass starts a new level (starting) and
     whether the continuation has ended (done)."""
-    cont: _ContinuationState
-    newton: _NewtonState
+    cont: ContinuationState
+    newton: NewtonState
     lam_try: jax.Array
     starting: jax.Array
     done: jax.Array
@@ -68,7 +68,7 @@ def flat_continuation(model: Model, settings: StaticSettings) -> Equilibrium:
         newton = newton_pass(model, settings, lam, ref,
                              select(f.starting, newton_start(Rs, ps, ys), f.newton),
                              (f.cont.R, f.cont.p))
-        ended = newton.status != _RUNNING
+        ended = newton.status != RUNNING
         cont = select(ended, after_newton(model, settings, f.cont, lam,
                                           *newton_outcome(newton)), f.cont)
         return _FlatState(cont, newton, lam, ended, ~continuing(settings, cont))

@@ -57,7 +57,7 @@ def _mismatch(solve, model, settings, t):
     return length_changes(m, eq.R, eq.p)[idx] - m.tendon_displacement[idx], eq
 
 
-def _newton(solve, model, settings, tolerance):
+def newton_solve(solve, model, settings, tolerance):
     """Newton on the tensions from zero; returns (tensions (K,), converged)."""
     k = len(displaced(model.structure))
 
@@ -95,7 +95,7 @@ def solve_tensions(solve, model, settings, tolerance):
     ``solve(model, settings) -> Equilibrium`` is the tension-controlled static solve
     (it must close over no traced value); the lengths are matched to ``tolerance`` (m)."""
     settings = jax.lax.stop_gradient(settings)
-    t, ok = _newton(solve, jax.lax.stop_gradient(model), settings, tolerance)
+    t, ok = newton_solve(solve, jax.lax.stop_gradient(model), settings, tolerance)
     t = _implicit_tensions(solve, model, settings, t)
     idx = jnp.asarray(displaced(model.structure))
     return model.replace(tendon_tension=model.tendon_tension.at[idx].set(t)), ok

@@ -5,7 +5,7 @@ import numpy as np
 
 import simsoft_jax as sj
 from simsoft_jax import _xla
-from simsoft_jax.statics import _solve_static, as_traced
+from simsoft_jax.statics import static_program, as_traced
 
 
 def test_compiler_options_are_a_dict_accepted_by_this_jaxlib():
@@ -28,11 +28,11 @@ def test_solve_static_matches_plain_jit():
     model = sj.build_model(scene)
     ours = sj.solve_static(model)
     settings = as_traced(sj.StaticSettings())
-    plain = jax.jit(_solve_static.__wrapped__)(model, settings)
+    plain = jax.jit(static_program.__wrapped__)(model, settings)
     assert bool(ours.converged) and bool(plain.converged)
     assert int(ours.iterations) == int(plain.iterations)
     np.testing.assert_allclose(np.asarray(ours.p), np.asarray(plain.p), rtol=0, atol=1e-13)
-    assert _solve_static.lower(model, settings).compile() is not None
+    assert static_program.lower(model, settings).compile() is not None
     # inside a user's jit (JAX takes compile options on the outermost jit only)
     nested = jax.jit(lambda m: sj.solve_static(m).p)(model)
     np.testing.assert_allclose(np.asarray(nested), np.asarray(plain.p), rtol=0, atol=1e-13)

@@ -31,7 +31,7 @@ from ..model import Model
 from ..status import Status, raise_if_failed
 # the package's names, re-exported (batched sweeps, the dynamics, results import them here)
 from . import branch
-from .newton import (_RUNNING, _NewtonState, _newton, _no_tangent, _update,  # noqa: F401
+from .newton import (RUNNING, NewtonState, newton_solve, no_tangent, update_frames,  # noqa: F401
                      level_tolerance, load_scale, max_load_step, newton_outcome, newton_pass,
                      newton_start, step_norm, weighted_norm)
 from .settings import Equilibrium, StaticSettings, as_traced, settings_from_scene  # noqa: F401
@@ -45,7 +45,7 @@ def _secant(R, p, R_prev, p_prev, ratio):
     return jax.vmap(one)(R, p, R_prev, p_prev)
 
 
-class _ContinuationState(NamedTuple):
+class ContinuationState(NamedTuple):
     """Carry of :func:`_continuation`: the last accepted frames (R, p) at load level lam,
     the ones before (R_prev, p_prev at lam_prev) for the secant predictor, the next load
     increment dlam, counters, the residual at the last accepted level, and the status of
@@ -76,7 +76,7 @@ class _ContinuationState(NamedTuple):
     kicked: jax.Array
 
 
-def trial_level(c: _ContinuationState):
+def trial_level(c: ContinuationState):
     """The next load level of the continuation and the secant prediction of its frames
     (moved by ``c.kick`` after a branch switch) and joint multipliers:
     ``(lam_try, R, p, y)``."""
@@ -84,12 +84,12 @@ def trial_level(c: _ContinuationState):
     lam_try = jnp.where(lam_try > 1.0 - 1e-9, 1.0, lam_try)  # no sliver step from round-off
     ratio = (lam_try - c.lam) / jnp.maximum(c.lam - c.lam_prev, 1e-300)
     ratio = jnp.where(c.accepted >= 1, ratio, 0.0)
-    Rs, ps = _update(*_secant(c.R, c.p, c.R_prev, c.p_prev, ratio), c.kick)
+    Rs, ps = update_frames(*_secant(c.R, c.p, c.R_prev, c.p_prev, ratio), c.kick)
     return lam_try, Rs, ps, c.y + ratio * (c.y - c.y_prev)
 
 
-def after_newton(model: Model, settings: StaticSettings, c: _ContinuationState, lam_try, R,
-                 p, y, its, res, status, tangent) -> _ContinuationState:
+def after_newton(model: Model, settings: StaticSettings, c: ContinuationState, lam_try, R,
+                 p, y, its, res, status, tangent) -> ContinuationState:
     """The continuation carry after the Newton solve at ``lam_try`` ended with ``status``:
     a converged level is accepted and the increment grows by 1.5 after an easy solve (fewer
     than 5 steps), up to :func:`max_load_step`; a failed one halves the increment. A level
@@ -105,7 +105,7 @@ def after_newton(model: Model, settings: StaticSettings, c: _ContinuationState, 
     ok = converged & ~refine & ~switch
     grow = jnp.where(its < 5, 1.5, 1.0)
     keep = lambda new, old: jnp.where(ok, new, old)  # noqa: E731
-    return _ContinuationState(
+    return ContinuationState(
         R=keep(R, c.R), p=keep(p, c.p), R_prev=keep(c.R, c.R_prev),
         p_prev=keep(c.p, c.p_prev), y=keep(y, c.y), y_prev=keep(c.y, c.y_prev),
         lam_prev=keep(c.lam, c.lam_prev),
@@ -120,7 +120,7 @@ def after_newton(model: Model, settings: StaticSettings, c: _ContinuationState, 
         kicked=~ok & (c.kicked | switch))
 
 
-def _watch(model: Model, c: _ContinuationState, converged, tangent):
+def _watch(model: Model, c: ContinuationState, converged, tangent):
     """``(stable, lost, kick)`` after a Newton solve that ended with tangent blocks
     ``tangent`` (:mod:`.branch`): whether that tangent is positive definite, whether a
     converged solve lost the stability of the last accepted level, and the
@@ -140,28 +140,28 @@ def _watch(model: Model, c: _ContinuationState, converged, tangent):
     return positive, lost, kick
 
 
-def continuing(settings: StaticSettings, c: _ContinuationState):
+def continuing(settings: StaticSettings, c: ContinuationState):
     """Whether the continuation goes on: loads not reached, increment above its minimum
     (``min_step_fraction / load_steps``), attempts left."""
     dlam_min = (1.0 / settings.load_steps) * settings.min_step_fraction
     return (c.lam < 1.0) & (c.dlam >= dlam_min) & (c.attempts < settings.max_attempts)
 
 
-def continuation_start(model: Model, settings: StaticSettings) -> _ContinuationState:
+def continuation_start(model: Model, settings: StaticSettings) -> ContinuationState:
     """The continuation carry at load level 0 (the start frames of ``model``)."""
     zero = jnp.array(0)
     y = jnp.zeros(mechanisms.multiplier_count(model.structure), model.p0.dtype)
-    return _ContinuationState(
+    return ContinuationState(
         R=model.R0, p=model.p0, R_prev=model.R0, p_prev=model.p0, y=y, y_prev=y,
         lam=jnp.array(0.0),
         lam_prev=jnp.array(0.0), dlam=jnp.asarray(1.0 / settings.load_steps, jnp.float64),
         accepted=zero, failures=zero, iterations=zero, attempts=zero,
         residual=jnp.array(jnp.inf), cause=jnp.array(int(Status.NOT_RUN)),
-        tangent=_no_tangent(model.p0), stable=jnp.array(False),
+        tangent=no_tangent(model.p0), stable=jnp.array(False),
         kick=jnp.zeros(model.p0.shape[:1] + (6,), model.p0.dtype), kicked=jnp.array(False))
 
 
-def continuation_result(settings: StaticSettings, c: _ContinuationState) -> Equilibrium:
+def continuation_result(settings: StaticSettings, c: ContinuationState) -> Equilibrium:
     """The :class:`Equilibrium` of a finished continuation carry."""
     converged = c.lam >= 1.0
     status = jnp.where(converged, Status.CONVERGED,
@@ -176,9 +176,9 @@ def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
     """Adaptive load continuation lam: 0 -> 1 with Newton at each level (spec section 5)."""
     ref = load_scale(model)
 
-    def body(c: _ContinuationState) -> _ContinuationState:
+    def body(c: ContinuationState) -> ContinuationState:
         lam_try, Rs, ps, ys = trial_level(c)
-        outcome = _newton(model, settings, Rs, ps, ys, lam_try, ref, (c.R, c.p))
+        outcome = newton_solve(model, settings, Rs, ps, ys, lam_try, ref, (c.R, c.p))
         return after_newton(model, settings, c, lam_try, *outcome)
 
     c = jax.lax.while_loop(lambda c: continuing(settings, c), body,
@@ -214,7 +214,7 @@ def _implicit_jvp(tangent, primals, tangents):
                                                      dA[:, 1, 0] - dA[:, 0, 1]], axis=1)], axis=1)
 
     def perturbed(m, x):
-        Rx, px = _update(R, p, x)
+        Rx, px = update_frames(R, p, x)
         r = residual(m, Rx, px, 1.0, previous)
         if m.structure.self_contact:
             r = r + rod_pairs.residual(m, Rx, px)
@@ -278,7 +278,7 @@ def equilibrium(model: Model, settings: StaticSettings, continuation=None,
 
 
 @jit
-def _solve_static(model: Model, settings: StaticSettings) -> Equilibrium:
+def static_program(model: Model, settings: StaticSettings) -> Equilibrium:
     return equilibrium(model, settings)
 
 
@@ -294,7 +294,7 @@ def solve_static(model: Model, settings: StaticSettings = StaticSettings(),
     ``throw=True`` raises :class:`~simsoft_jax.status.SolveError` instead of returning a
     failed solve.
     """
-    eq = _solve_static(model, as_traced(settings))
+    eq = static_program(model, as_traced(settings))
     if throw:
         raise_if_failed("static", eq.converged, eq.status, eq.cause, eq.load_level,
                         eq.residual_norm)

@@ -69,12 +69,12 @@ def load_scale(model: Model):
     return jnp.sqrt(total + registry.load_scale_squared(model))
 
 
-def _update(R, p, dx):
+def update_frames(R, p, dx):
     return jax.vmap(lie.compose_exp)(R, p, dx)
 
 
-class _NewtonState(NamedTuple):
-    """Carry of :func:`_newton`: the trial frames (R, p), the accepted base frames and
+class NewtonState(NamedTuple):
+    """Carry of :func:`newton_solve`: the trial frames (R, p), the accepted base frames and
     the Newton step from the base (dx), the fraction of it tried (step), the size of that
     step (size_base) and the residual at the base (res_base), the residual at the last
     evaluated trial (res), rejected trials in a row (backtracks), accepted Newton steps
@@ -99,7 +99,7 @@ class _NewtonState(NamedTuple):
     tangent: tuple
 
 
-_RUNNING = -1
+RUNNING = -1
 
 
 def level_tolerance(model: Model, settings: StaticSettings):
@@ -117,9 +117,9 @@ def max_load_step(model: Model, settings: StaticSettings):
     return jnp.maximum(settings.max_load_step, first)
 
 
-def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: _NewtonState,
-                previous=None) -> _NewtonState:
-    """One pass of :func:`_newton` at load level ``lam`` (load scale ``ref``): residual,
+def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState,
+                previous=None) -> NewtonState:
+    """One pass of :func:`newton_solve` at load level ``lam`` (load scale ``ref``): residual,
     tangent and Newton step at the trial state, then accept or backtrack (see there);
     ``previous``: the frames (R, p) of the last converged level (the reference of the
     quasi-static friction)."""
@@ -156,20 +156,20 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: _NewtonStat
     dx = jnp.where(accept, dx, c.dx)
     dy = jnp.where(accept, dy, c.dy)
     step = jnp.where(accept, 1.0, 0.5 * c.step)
-    trial_R, trial_p = _update(base_R, base_p, step * dx)
+    trial_R, trial_p = update_frames(base_R, base_p, step * dx)
     trial_y = base_y + step * dy
     iterations = c.iterations + accept
     # a non-finite trial from a base with no finite step (the first evaluation, or
     # after line_search_steps halvings) cannot be backtracked: the solve fails here
     nonfinite = ~finite & (exhausted | ~jnp.isfinite(c.size_base))
-    status = jnp.where(converged | stalled, Status.CONVERGED, _RUNNING)
+    status = jnp.where(converged | stalled, Status.CONVERGED, RUNNING)
     status = jnp.where(nonfinite, Status.NONFINITE, status)
-    status = jnp.where((status == _RUNNING) & (iterations > settings.max_iterations),
+    status = jnp.where((status == RUNNING) & (iterations > settings.max_iterations),
                        Status.MAX_ITERATIONS, status)
-    status = jnp.where((status == _RUNNING) & ~jnp.all(jnp.isfinite(trial_p)),
+    status = jnp.where((status == RUNNING) & ~jnp.all(jnp.isfinite(trial_p)),
                        Status.NONFINITE, status)
-    done = status != _RUNNING
-    return _NewtonState(
+    done = status != RUNNING
+    return NewtonState(
         R=jnp.where(done, c.R, trial_R), p=jnp.where(done, c.p, trial_p),
         base_R=base_R, base_p=base_p, dx=dx, y=jnp.where(done, c.y, trial_y),
         base_y=base_y, dy=dy, step=step,
@@ -179,24 +179,24 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: _NewtonStat
         iterations=iterations, status=status, tangent=tangent)
 
 
-def newton_start(R, p, y) -> _NewtonState:
+def newton_start(R, p, y) -> NewtonState:
     """The Newton carry before the first pass, from the predicted frames (R, p) and joint
     multipliers y."""
     inf, zero = jnp.array(jnp.inf), jnp.array(0)
-    return _NewtonState(R=R, p=p, base_R=R, base_p=p, dx=jnp.zeros(p.shape[:1] + (6,)),
+    return NewtonState(R=R, p=p, base_R=R, base_p=p, dx=jnp.zeros(p.shape[:1] + (6,)),
                         y=y, base_y=y, dy=jnp.zeros_like(y),
                         step=jnp.array(1.0), size_base=inf, res=inf, res_base=inf,
-                        backtracks=zero, iterations=zero, status=jnp.array(_RUNNING),
-                        tangent=_no_tangent(p))
+                        backtracks=zero, iterations=zero, status=jnp.array(RUNNING),
+                        tangent=no_tangent(p))
 
 
-def _no_tangent(p):
+def no_tangent(p):
     """Zero tangent blocks ``(diag, upper, lower)`` for the N nodes of positions p (N,3)."""
     n = p.shape[0]
     return (jnp.zeros((n, 6, 6), p.dtype),) + (jnp.zeros((n - 1, 6, 6), p.dtype),) * 2
 
 
-def newton_outcome(c: _NewtonState):
+def newton_outcome(c: NewtonState):
     """(R, p, y, Newton steps, residual norm, status code, tangent blocks at (R, p)) of a
     finished Newton carry."""
     return (c.R, c.p, c.y, jnp.maximum(c.iterations - 1, 0), c.res, c.status,
@@ -217,7 +217,7 @@ def _mechanism_step(model: Model, ref, R, p, y, r, blocks):
     return (res,) + mechanisms.split(model.structure, x, z)
 
 
-def _newton(model: Model, settings: StaticSettings, R, p, y, lam, ref, previous=None):
+def newton_solve(model: Model, settings: StaticSettings, R, p, y, lam, ref, previous=None):
     """Newton iterations at load level ``lam`` from (R, p) (spec S71) with damping.
 
     One loop evaluates residual, tangent and Newton step at a trial state. The trial is
@@ -232,7 +232,7 @@ def _newton(model: Model, settings: StaticSettings, R, p, y, lam, ref, previous=
     norm, status code, tangent blocks at (R, p)). ``previous``: as in
     :func:`newton_pass`.
     """
-    c = jax.lax.while_loop(lambda c: c.status == _RUNNING,
+    c = jax.lax.while_loop(lambda c: c.status == RUNNING,
                            lambda c: newton_pass(model, settings, lam, ref, c, previous),
                            newton_start(R, p, y))
     return newton_outcome(c)
