@@ -17,12 +17,13 @@ TRUE = {"EIy@0-1": 0.8, "EIy@2-3": 1.25, "GJ": 1.3}
 HEADER = "scene,rod,node,offset_x,offset_y,offset_z,quantity,value,std,reference\n"
 
 
-def strip(name, mass, behind):
-    """Cantilever strip (4 elements), a weight of ``mass`` kg hung at the mid-chord
-    (``behind = 0``) or ``behind`` m behind it (a world force at an offset point)."""
+def strip(name, mass, behind, elements=4, solver=None):
+    """Cantilever strip (0.5 m, ``elements`` elements), a weight of ``mass`` kg hung at the
+    mid-chord (``behind = 0``) or ``behind`` m behind it (a world force at an offset
+    point); ``solver`` the scene's ``[solver]`` (default: static, tolerance 1e-12)."""
     return sj.Scene.from_dict({
-        "name": name, "solver": {"kind": "static", "tolerance": 1e-12},
-        "rods": [{"name": "wing", "elements": 4,
+        "name": name, "solver": solver or {"kind": "static", "tolerance": 1e-12},
+        "rods": [{"name": "wing", "elements": elements,
                   "geometry": {"kind": "straight", "length": 0.5},
                   "stiffness": {"EA": 1e7, "GAy": 1e7, "GAz": 1e7, "GJ": 6.0, "EIy": 4.0,
                                 "EIz": 3000.0},

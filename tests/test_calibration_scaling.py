@@ -16,23 +16,13 @@ from simsoft_jax.calibration_report import metrics
 from simsoft_jax.measurements import observation_set
 from simsoft_jax.statics import StaticSettings
 
+from test_calibration_groups import strip
+
 HEADER = "scene,rod,node,offset_x,offset_y,offset_z,quantity,value,std,reference,tip_mass\n"
 COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
 
 
-def strip(name, mass, elements=4, solver=None):
-    """Cantilever strip (0.5 m) with a weight of ``mass`` kg at the tip, 5 cm behind the
-    axis (bending and twist)."""
-    return sj.Scene.from_dict({
-        "name": name, "solver": solver or {"kind": "static", "tolerance": 1e-12},
-        "rods": [{"name": "wing", "elements": elements,
-                  "geometry": {"kind": "straight", "length": 0.5},
-                  "stiffness": {"EA": 1e7, "GAy": 1e7, "GAz": 1e7, "GJ": 6.0, "EIy": 4.0,
-                                "EIz": 3000.0},
-                  "inertia": {"rhoA": 1.0, "rhoJ": 0.0, "rhoIy": 0.0, "rhoIz": 0.0}}],
-        "constraints": [{"kind": "clamp", "rod": "wing", "node": 0}],
-        "loads": [{"kind": "force", "rod": "wing", "node": -1,
-                   "vector": [0.0, 0.0, -9.81 * mass], "offset": [0.0, -0.05, 0.0]}]})
+BEHIND = 0.05      # m: the weight hangs behind the axis (bending and twist)
 
 
 MASSES = (0.2, 0.4, 0.6, 0.8)
@@ -40,7 +30,7 @@ MASSES = (0.2, 0.4, 0.6, 0.8)
 
 def observations(tmp_path, values=None, masses=MASSES, std=0.0005):
     """Tip deflection and twist of each loaded strip relative to the unloaded one."""
-    scenes = [strip("unloaded", 0.0)] + [strip(f"m{m}", m) for m in masses]
+    scenes = [strip("unloaded", 0.0, BEHIND)] + [strip(f"m{m}", m, BEHIND) for m in masses]
     rows = []
     for m in masses:
         rows.append(f"m{m},wing,-1,0,0,0,uz,0,{std},unloaded,{m}")
@@ -88,7 +78,7 @@ def test_scene_solver_settings_are_honoured_and_failures_name_the_scene(tmp_path
     """A scene that allows one Newton iteration in one load step cannot converge: its
     prediction fails naming it and the status; the same rows with default settings
     given explicitly succeed."""
-    hard = strip("m0.8", 0.8, solver={"kind": "static", "tolerance": 1e-12,
+    hard = strip("m0.8", 0.8, BEHIND, solver={"kind": "static", "tolerance": 1e-12,
                                       "max_iterations": 1, "load_steps": 1,
                                       "max_load_step": 1.0})
     path = tmp_path / "obs.csv"
@@ -128,7 +118,7 @@ def test_two_perfectly_correlated_groups_are_reported_unidentifiable(tmp_path):
     information matrix is singular; the fit says so (labels and a message) instead of
     wandering off; a smoothness prior ties the halves, which then both take the factor
     of a single group."""
-    scenes = [strip("m0.5", 0.5, elements=4)]
+    scenes = [strip("m0.5", 0.5, BEHIND, elements=4)]
     path = tmp_path / "one.csv"
     path.write_text(HEADER + "m0.5,wing,-1,0,0,0,uz,0,0.0005,,0.5\n")
     obs = observation_set(path, scenes)

@@ -216,36 +216,9 @@ def test_tangent_paths_agree_with_fields_in_statics_and_dynamics():
     """Closed-form and autodiff paths: the static tangent and the dynamic iteration matrix
     with both registered terms agree to round-off; the static tangent matches central
     differences of the residual along the chart."""
-    from test_tangent_paths import deformed
-    from simsoft_jax import assembly, linalg, loads, lie
-    from simsoft_jax.dynamics import element_inertia
-    from simsoft_jax.dynamics.residual import residual_and_iteration_matrix
-    from simsoft_jax.dynamics.scheme import iteration_factors
+    from test_tangent_paths import check_dynamic_paths, check_static_paths
+    from simsoft_jax import loads
 
-    model = sj.build_model(sj.Scene.from_dict(fields_scene("static")))
-    R, p = deformed(model, 0)
-    tangent = jax.jit(assembly.residual_and_tangent, static_argnums=4)
-    (r1, b1), (r2, b2) = (tangent(model, R, p, 0.7, t) for t in ("closed_form", "autodiff"))
-    K1, K2 = np.asarray(linalg.dense(b1)), np.asarray(linalg.dense(b2))
-    np.testing.assert_allclose(np.asarray(r1), np.asarray(r2), rtol=0, atol=1e-12)
-    np.testing.assert_allclose(K1, K2, rtol=0, atol=1e-10 * np.abs(K1).max())
-    mask = np.asarray(model.structure.free_mask()).ravel() > 0
-    x = np.random.default_rng(3).standard_normal(K1.shape[0]) * mask
-    residual = jax.jit(lambda e: assembly.residual(
-        model, *jax.vmap(lie.compose_exp)(R, p, e * jnp.asarray(x).reshape(-1, 6)), 0.7))
-    eps = 1e-6
-    fd = (np.asarray(residual(eps)) - np.asarray(residual(-eps))).ravel() / (2 * eps)
-    np.testing.assert_allclose((K1 @ x)[mask], fd[mask], rtol=0, atol=1e-6 * np.abs(fd).max())
-
-    model = loads.loads_at(sj.build_model(sj.Scene.from_dict(fields_scene("dynamic"))), 0.2)
-    R, p = deformed(model, 1)
-    rng = np.random.default_rng(4)
-    v, vd, w = (jnp.asarray(0.3 * rng.standard_normal(model.p0.shape[:1] + (6,)))
-                for _ in range(3))
-    beta_p, gamma_p = iteration_factors(0.8, 0.01)
-    matrix = jax.jit(residual_and_iteration_matrix, static_argnums=10)
-    (r1, b1), (r2, b2) = (matrix(model, element_inertia(model), R, p, v, vd, w, beta_p,
-                                 gamma_p, None, t) for t in ("closed_form", "autodiff"))
-    S1, S2 = np.asarray(linalg.dense(b1)), np.asarray(linalg.dense(b2))
-    np.testing.assert_allclose(np.asarray(r1), np.asarray(r2), rtol=0, atol=1e-10)
-    np.testing.assert_allclose(S1, S2, rtol=0, atol=1e-10 * np.abs(S1).max())
+    check_static_paths(sj.build_model(sj.Scene.from_dict(fields_scene("static"))))
+    check_dynamic_paths(loads.loads_at(
+        sj.build_model(sj.Scene.from_dict(fields_scene("dynamic"))), 0.2))

@@ -22,46 +22,28 @@ def deformed(model, seed, size=0.05):
     return jax.vmap(lie.compose_exp)(model.R0, model.p0, jnp.asarray(x))
 
 
-def test_static_tangent_paths_agree_and_match_finite_differences():
-    model = sj.build_model(sj.Scene.from_dict(static_scene()))
+def check_static_paths(model, lam=0.7):
+    """At frames deformed away from the reference: the static residual and tangent of the
+    two paths agree to round-off, and the tangent matches central differences of the
+    residual along the chart (free dofs only)."""
     R, p = deformed(model, 0)
-    r1, b1 = jax.jit(assembly.residual_and_tangent, static_argnums=4)(model, R, p, 0.7,
-                                                                      "closed_form")
-    r2, b2 = jax.jit(assembly.residual_and_tangent, static_argnums=4)(model, R, p, 0.7,
-                                                                      "autodiff")
+    tangent = jax.jit(assembly.residual_and_tangent, static_argnums=4)
+    (r1, b1), (r2, b2) = (tangent(model, R, p, lam, t) for t in ("closed_form", "autodiff"))
     K1, K2 = np.asarray(linalg.dense(b1)), np.asarray(linalg.dense(b2))
     np.testing.assert_allclose(np.asarray(r1), np.asarray(r2), rtol=0, atol=1e-12)
     np.testing.assert_allclose(K1, K2, rtol=0, atol=1e-10 * np.abs(K1).max())
-    # central differences of the residual along the chart, free dofs only
     mask = np.asarray(model.structure.free_mask()).ravel() > 0
-    rng = np.random.default_rng(3)
-    x = rng.standard_normal(K1.shape[0]).reshape(-1, 6) * mask.reshape(-1, 6)
+    x = np.random.default_rng(3).standard_normal(K1.shape[0]) * mask
+    residual = jax.jit(lambda e: assembly.residual(
+        model, *jax.vmap(lie.compose_exp)(R, p, e * jnp.asarray(x).reshape(-1, 6)), lam))
     eps = 1e-6
-
-    @jax.jit
-    def residual_along(e):
-        Rx, px = jax.vmap(lie.compose_exp)(R, p, e * jnp.asarray(x))
-        return assembly.residual(model, Rx, px, 0.7)
-
-    def res(e):
-        return np.asarray(residual_along(e)).ravel()
-
-    fd = (res(eps) - res(-eps)) / (2 * eps)
-    np.testing.assert_allclose((K1 @ x.ravel())[mask], fd[mask], rtol=0,
-                               atol=1e-6 * np.abs(fd).max())
+    fd = (np.asarray(residual(eps)) - np.asarray(residual(-eps))).ravel() / (2 * eps)
+    np.testing.assert_allclose((K1 @ x)[mask], fd[mask], rtol=0, atol=1e-6 * np.abs(fd).max())
 
 
-@pytest.mark.parametrize("inertia, sliding", [("consistent", False), ("lumped", True)],
-                         ids=["consistent-drive", "lumped-sliding-drive"])
-def test_dynamic_iteration_matrix_paths_agree(inertia, sliding):
-    """Damped rod, all load kinds, a driven (or sliding) base: residual and iteration
-    matrix ``M beta' + C gamma' + K T(w)`` of both paths agree."""
-    scene = dynamic_scene()
-    scene["solver"]["inertia"] = inertia
-    if sliding:
-        scene["constraints"][0]["slides_along"] = [1.0, 0.0, 0.0]
-    model = loads.loads_at(sj.build_model(sj.Scene.from_dict(scene)), 0.2)
-    assert model.structure.has_viscosity and bool(model.structure.slide_drives) == sliding
+def check_dynamic_paths(model, sliding=False):
+    """At a deformed, moving state: the dynamic residual and iteration matrix
+    ``M beta' + C gamma' + K T(w)`` of the two paths agree to round-off."""
     R, p = deformed(model, 1)
     rng = np.random.default_rng(4)
     v, vd, w = (jnp.asarray(0.3 * rng.standard_normal(model.p0.shape[:1] + (6,)))
@@ -70,12 +52,29 @@ def test_dynamic_iteration_matrix_paths_agree(inertia, sliding):
     inert = element_inertia(model)
     slide = drives.slide_maps(model, R, w) if sliding else None
     matrix = jax.jit(residual_and_iteration_matrix, static_argnums=10)
-    out = [matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p, slide, tangent)
-           for tangent in ("closed_form", "autodiff")]
-    (r1, b1), (r2, b2) = out
+    (r1, b1), (r2, b2) = (matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p, slide, t)
+                          for t in ("closed_form", "autodiff"))
     S1, S2 = np.asarray(linalg.dense(b1)), np.asarray(linalg.dense(b2))
     np.testing.assert_allclose(np.asarray(r1), np.asarray(r2), rtol=0, atol=1e-10)
     np.testing.assert_allclose(S1, S2, rtol=0, atol=1e-10 * np.abs(S1).max())
+
+
+def test_static_tangent_paths_agree_and_match_finite_differences():
+    check_static_paths(sj.build_model(sj.Scene.from_dict(static_scene())))
+
+
+@pytest.mark.parametrize("inertia, sliding", [("consistent", False), ("lumped", True)],
+                         ids=["consistent-drive", "lumped-sliding-drive"])
+def test_dynamic_iteration_matrix_paths_agree(inertia, sliding):
+    """Damped rod, all load kinds, a driven (or sliding) base: residual and iteration
+    matrix of both paths agree."""
+    scene = dynamic_scene()
+    scene["solver"]["inertia"] = inertia
+    if sliding:
+        scene["constraints"][0]["slides_along"] = [1.0, 0.0, 0.0]
+    model = loads.loads_at(sj.build_model(sj.Scene.from_dict(scene)), 0.2)
+    assert model.structure.has_viscosity and bool(model.structure.slide_drives) == sliding
+    check_dynamic_paths(model, sliding)
 
 
 def test_static_solves_agree_on_both_paths():
