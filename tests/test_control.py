@@ -26,7 +26,7 @@ from simsoft_jax import dynamics as dy
 # ---------------------------------------------------------------- P-controlled tip moment
 EI_M, L_M, TARGET = 1.0, 1.0, 0.5          # N m^2, m, rad
 MOMENT_SCENE = {
-    "solver": {"kind": "dynamic", "t_end": 1.0, "dt": 0.1},
+    "solver": {"kind": "dynamic", "t_end": 1.0, "dt": 0.05},
     "rods": [{"name": "rod", "elements": 3, "geometry": {"kind": "straight", "length": L_M},
               "material": {"E": 1e6, "nu": 0.5, "density": 1000.0, "mass_damping": 20.0},
               "stiffness": {"EA": 1e4, "GAy": 1e4, "GAz": 1e4, "GJ": 1.0, "EIy": EI_M,
@@ -34,7 +34,7 @@ MOMENT_SCENE = {
               "inertia": {"rhoA": 0.1, "rhoJ": 0.1, "rhoIy": 0.1, "rhoIz": 0.1}}],
     "constraints": [{"kind": "clamp", "rod": "rod", "node": 0}],
     "loads": [{"kind": "moment", "rod": "rod", "node": -1, "vector": [0.0, 0.0, 0.0]}]}
-MOMENT_SETTINGS = dy.DynamicSettings(dt=0.1, steps=200, save_every=20, tolerance=1e-12)
+MOMENT_SETTINGS = dy.DynamicSettings(dt=0.05, steps=400, save_every=40, tolerance=1e-12)
 
 
 def tip_angle(R):
@@ -131,11 +131,11 @@ TENDON_SCENE = {
               "material": {"E": 1e6, "nu": 0.5, "density": 1000.0, "mass_damping": 30.0},
               "stiffness": {"EA": EA_T, "GAy": 20.0, "GAz": 20.0, "GJ": 1.5e-4,
                             "EIy": EI_T, "EIz": EI_T},
-              "inertia": {"rhoA": 0.03, "rhoJ": 2e-7, "rhoIy": 1e-7, "rhoIz": 1e-7}}],
+              "inertia": {"rhoA": 0.03, "rhoJ": 1e-4, "rhoIy": 1e-4, "rhoIz": 1e-4}}],
     "constraints": [{"kind": "clamp", "rod": "arm", "node": 0}],
     "tendons": [{"name": "t", "rod": "arm", "from_node": 0, "to_node": -1,
                  "offset": [0.0, R_T], "tension": 0.0}]}
-DT_T = 0.05
+DT_T, RAMP = 0.05, 1.0                             # s
 
 
 def arc_height(T):
@@ -153,10 +153,12 @@ def bisect(f, lo, hi):
 
 
 def pid_policy(t, state, model, gains, integral):
-    """PID on the tendon tension from the tip height error (target minus height)."""
+    """PID on the tendon tension from the tip height error: a reference ramped to the
+    target over the first ``RAMP`` s minus the height (derivative on the measurement)."""
     _, p = ctl.tip_pose(model, state, "arm")
     linear, _ = ctl.tip_velocity(model, state, "arm")
-    tension, integral = ctl.pid(gains, Z_TARGET - p[2], -linear[2], integral, DT_T)
+    reference = Z_TARGET * jnp.minimum(t / RAMP, 1.0)
+    tension, integral = ctl.pid(gains, reference - p[2], -linear[2], integral, DT_T)
     return model.replace(tendon_tension=model.tendon_tension.at[0].set(tension)), integral
 
 
