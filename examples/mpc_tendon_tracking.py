@@ -12,7 +12,7 @@ lets the tip reach, so the arm is pressed onto the floor there. The run covers o
 period (``--fast``: the first half, down onto the floor and back).
 
 Controller: every k steps (dt = 0.02 s) the tensions of the next H steps (two per step,
-``T = 0.1 N softplus(u)``, so never negative) are optimized with Adam (optax) on the
+``T = T_max sigmoid(u)``: between 0 and the actuators' limit T_max = 0.15 N) are optimized with Adam (optax) on the
 horizon's mean squared tip-height error plus a small penalty on tension changes, by
 ``jax.value_and_grad`` through ``simulate(..., control=schedule, differentiable=True)``
 (implicit derivative at every step, contact included) from the measured state; the first
@@ -43,7 +43,7 @@ from _common import parse_args, save, write_summary
 L, EA, EI, R = 0.2, 50.0, 2e-4, 0.005         # m, N, N m^2, m
 FLOOR, RADIUS, AMPLITUDE = -0.02, 0.005, 0.03  # m
 PERIOD = 1.6                                    # s
-DT, TENSION_SCALE, EFFORT = 0.02, 0.1, 1e-2    # s, N, weight of tension changes
+DT, T_MAX, EFFORT = 0.02, 0.15, 1e-2           # s, N, weight of tension changes
 
 
 def scene(elements):
@@ -72,8 +72,8 @@ def target(t):
 
 
 def tensions(u):
-    """Tendon tensions (N), never negative, from unconstrained parameters u."""
-    return TENSION_SCALE * jax.nn.softplus(u)
+    """Tendon tensions (N) in (0, T_MAX) from unconstrained parameters u."""
+    return T_MAX * jax.nn.sigmoid(u)
 
 
 def schedule(t, state, model, params):
@@ -94,8 +94,8 @@ def feedforward(z):
         mid = 0.5 * (lo + hi)
         low = (1.0 - np.cos(mid * L)) / mid < np.abs(z)
         lo, hi = np.where(low, mid, lo), np.where(low, hi, mid)
-    T = EI * 0.5 * (lo + hi) / R
-    u = np.log(np.expm1(np.maximum(T, 1e-9) / TENSION_SCALE))   # inverse softplus
+    x = np.clip(EI * 0.5 * (lo + hi) / R / T_MAX, 1e-4, 1.0 - 1e-4)
+    u = np.log(x / (1.0 - x))                                  # inverse sigmoid
     off = np.full_like(u, -8.0)
     return np.stack([np.where(z > 0, u, off), np.where(z > 0, off, u)], axis=1)
 
@@ -114,13 +114,13 @@ def main():
         traj = sj.simulate(model, plan_settings, state, differentiable=True,
                            control=schedule, control_params=(t0, u))
         error = (traj.p[1:, tip, 2] - target(traj.time[1:])) / AMPLITUDE
-        change = jnp.diff(tensions(u), axis=0) / TENSION_SCALE
+        change = jnp.diff(tensions(u), axis=0) / T_MAX
         return jnp.mean(error**2) + EFFORT * jnp.mean(change**2)
 
     plan_step = jax.jit(jax.value_and_grad(horizon_cost))
     apply = jax.jit(lambda model, state, t0, u: sj.simulate(
         model, apply_settings, state, control=schedule, control_params=(t0, u)))
-    optimizer = optax.adam(0.3)
+    optimizer = optax.adam(0.2)
 
     # open loop: the quasi-static feed-forward over the whole run
     times = np.arange(steps + 1) * DT

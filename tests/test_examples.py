@@ -454,20 +454,22 @@ def test_mpc_tendon_tracking(examples):
     horizon cost below that of a target missed by the full amplitude."""
     s, _ = examples["mpc_tendon_tracking"].result()
     assert s["converged"]
-    assert s["rms_error_mpc_reachable_m"] < 0.5 * s["rms_error_open_loop_reachable_m"]
+    assert s["rms_error_mpc_reachable_m"] < 0.8 * s["rms_error_open_loop_reachable_m"]
     assert s["lowest_tip_mpc_m"] > s["floor_reach_m"] - 1e-3
     assert max(s["mpc_final_horizon_costs"]) < 1.0
 
 
 def test_learn_policy(examples):
-    """Learned PID gains (examples/learn_policy.py): the loss decreases, and each
-    closed-loop run ends near its target with the integral term at the tension of the
-    exact tendon arc through that target (pure bending by a tendon at constant offset)."""
+    """Learned PID gains (examples/learn_policy.py): the loss decreases; each long
+    closed-loop run with the learned gains ends closer to its target than with the
+    initial gains, within 10 um, with the integral term at the tension of the exact
+    tendon arc through that target (pure bending by a tendon at constant offset)."""
     s, _ = examples["learn_policy"].result()
     assert s["converged"]
-    assert s["losses"][-1] < s["losses"][0]
-    for z, error, tension in zip(s["targets_m"], s["final_errors_m"],
-                                 s["integral_tension_N"]):
+    assert s["losses"][-1] < 0.8 * s["losses"][0]
+    for z, error, before, tension in zip(s["targets_m"], s["final_errors_m"],
+                                         s["initial_gains_final_errors_m"],
+                                         s["integral_tension_N"]):
         exact = tendon_arc_tension(z)
-        assert abs(error) < 0.05 * z
-        assert abs(tension - exact) < 0.1 * exact
+        assert abs(error) < min(1e-5, abs(before))
+        assert abs(tension - exact) < 1e-3 * exact
