@@ -12,7 +12,8 @@ closed forms:
   height and ``T = kp (z* - z)`` agree, short of the target;
 * gradients of a tracking cost in the PID gains against central finite differences;
 * the task-space helpers: tip velocity against a difference of positions, the static
-  Jacobian of the tendon arm against the arc's derivative.
+  Jacobian of the tendon arm against the arc's derivative, the one-step Jacobian against
+  finite differences, task-space PD against the pseudo-inverse.
 """
 import jax
 import jax.numpy as jnp
@@ -256,3 +257,26 @@ def test_task_space_pd_is_the_least_squares_command():
     np.testing.assert_allclose(np.asarray(J @ du), demand, atol=1e-14)
     np.testing.assert_allclose(np.asarray(du), np.linalg.pinv(np.asarray(J)) @ demand,
                                atol=1e-14)
+
+
+@pytest.mark.slow
+def test_step_jacobian_matches_finite_differences(tendon_model):
+    """``d p_tip(t + dt) / d T`` of one dynamic step (implicit derivative) against central
+    differences of plain steps, from a moving state (5 steps of 0.01 s under 0.02 N)."""
+    settings = dy.DynamicSettings(dt=0.01, steps=5, save_every=1, tolerance=1e-12)
+
+    def actuate(model, u):
+        return model.replace(tendon_tension=u)
+
+    state = dy.simulate(actuate(tendon_model, jnp.array([0.02])), settings).final
+    J = ctl.step_jacobian(tendon_model, settings, state, actuate, jnp.array([0.03]), -1)
+    one = settings.replace(steps=1)
+    h = 1e-6
+
+    def tip(u):
+        return np.asarray(dy.simulate(actuate(tendon_model, jnp.array([u])), one,
+                                      state).p[-1, -1])
+
+    fd = (tip(0.03 + h) - tip(0.03 - h)) / (2 * h)
+    assert np.linalg.norm(fd) > 1e-4
+    np.testing.assert_allclose(np.asarray(J[:, 0]), fd, rtol=0, atol=1e-6 * np.linalg.norm(fd))
