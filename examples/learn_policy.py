@@ -11,6 +11,8 @@ target over the first 0.5 s. The loss is the mean over a batch of targets of the
 squared relative tip-height error over the run; its gradient in the log-gains comes from
 ``jax.vmap`` over the targets of ``simulate(..., control=..., differentiable=True)``
 (one program for the batch, implicit derivative at every step) and drives Adam (optax).
+A step into gains whose rollouts fail (past the stability of the sampled loop) is
+undone and the step halved (counted in the summary).
 
 Printed and saved: the loss and gains at every iteration; for the initial and the
 learned gains, a longer run (15 s) per target: its final error and the check that it
@@ -89,30 +91,45 @@ def main():
 
     def loss_one(log_gains, height):
         traj = rollout(log_gains, height, True)
-        return jnp.mean(((traj.p[:, tip, 2] - height) / height) ** 2)
+        return jnp.mean(((traj.p[:, tip, 2] - height) / height) ** 2), traj.converged
 
-    loss_and_grad = jax.jit(jax.value_and_grad(
-        lambda g: jnp.mean(jax.vmap(loss_one, in_axes=(None, 0))(g, targets))))
+    def loss_batch(log_gains):
+        losses, converged = jax.vmap(loss_one, in_axes=(None, 0))(log_gains, targets)
+        return jnp.mean(losses), jnp.all(converged)
+
+    loss_and_grad = jax.jit(jax.value_and_grad(loss_batch, has_aux=True))
     optimizer = optax.adam(0.3)
     log_gains = jnp.log(jnp.array(START_GAINS))
     opt_state = optimizer.init(log_gains)
     losses, history = [], []
+    step_scale, rejected, previous = 1.0, 0, None
     for it in range(iterations + 1):
-        loss, grad = loss_and_grad(log_gains)
-        if not np.isfinite(float(loss)):
-            raise RuntimeError(f"iteration {it}: a closed-loop rollout failed (gains "
-                               f"{np.exp(np.asarray(log_gains))})")
-        losses.append(float(loss))
-        history.append(np.exp(np.asarray(log_gains)).tolist())
-        print(f"iteration {it:3d}  loss {losses[-1]:.5f}  kp, ki, kd = "
-              + ", ".join(f"{g:.4g}" for g in history[-1]))
+        (loss, converged), grad = loss_and_grad(log_gains)
+        if not (bool(converged) and np.all(np.isfinite(np.asarray(grad)))):
+            # a closed-loop rollout failed (gains past the loop's stability): back to the
+            # last accepted gains with half the step
+            if previous is None:
+                raise RuntimeError(f"the closed-loop rollouts fail at the initial gains "
+                                   f"{START_GAINS}")
+            rejected, step_scale = rejected + 1, 0.5 * step_scale
+            print(f"iteration {it:3d}  a rollout failed at kp, ki, kd = "
+                  + ", ".join(f"{g:.4g}" for g in np.exp(np.asarray(log_gains)))
+                  + f": step halved to {step_scale:g}")
+            log_gains, opt_state, grad = previous
+        else:
+            losses.append(float(loss))
+            history.append(np.exp(np.asarray(log_gains)).tolist())
+            print(f"iteration {it:3d}  loss {losses[-1]:.5f}  kp, ki, kd = "
+                  + ", ".join(f"{g:.4g}" for g in history[-1]))
         if it < iterations:
+            previous = (log_gains, opt_state, grad)
             updates, opt_state = optimizer.update(grad, opt_state)
-            log_gains = optax.apply_updates(log_gains, updates)
+            log_gains = optax.apply_updates(log_gains, step_scale * updates)
 
     check = settings.replace(steps=CHECK_STEPS, save_every=2)
     runs = jax.jit(jax.vmap(lambda g, h: rollout(g, h, False, check), in_axes=(None, 0)))
     first, last = (runs(jnp.log(jnp.array(history[i])), targets) for i in (0, -1))
+    # the gains kept are those of the last accepted iteration
     gains = history[-1]
     final_errors = (np.asarray(last.p[:, -1, tip, 2]) - np.asarray(targets)).tolist()
     initial_errors = (np.asarray(first.p[:, -1, tip, 2]) - np.asarray(targets)).tolist()
@@ -120,6 +137,7 @@ def main():
     exact_tension = [arc_tension(float(z)) for z in targets]
     summary = {"converged": bool(np.all(np.asarray(last.converged))),
                "targets_m": np.asarray(targets).tolist(), "losses": losses,
+               "rejected_steps": rejected,
                "gains_history": history, "final_gains": gains,
                "final_errors_m": final_errors, "initial_gains_final_errors_m": initial_errors,
                "training_horizon_s": steps * DT, "check_run_s": CHECK_STEPS * DT,
