@@ -11,8 +11,9 @@ target over the first 0.5 s. The loss is the mean over a batch of targets of the
 squared relative tip-height error over the run; its gradient in the log-gains comes from
 ``jax.vmap`` over the targets of ``simulate(..., control=..., differentiable=True)``
 (one program for the batch, implicit derivative at every step) and drives Adam (optax).
-A step into gains whose rollouts fail (past the stability of the sampled loop) is
-undone and the step halved (counted in the summary).
+The loss keeps falling as the gains grow, until the motion gets too violent for a
+single Newton solve per step (the differentiable rollout does not sub-step): a step
+into gains whose rollouts fail is undone and the step halved (counted in the summary).
 
 Printed and saved: the loss and gains at every iteration; for the initial and the
 learned gains, a longer run (15 s) per target: its final error and the check that it
@@ -106,8 +107,7 @@ def main():
     for it in range(iterations + 1):
         (loss, converged), grad = loss_and_grad(log_gains)
         if not (bool(converged) and np.all(np.isfinite(np.asarray(grad)))):
-            # a closed-loop rollout failed (gains past the loop's stability): back to the
-            # last accepted gains with half the step
+            # a closed-loop rollout failed: back to the last accepted gains, half the step
             if previous is None:
                 raise RuntimeError(f"the closed-loop rollouts fail at the initial gains "
                                    f"{START_GAINS}")
