@@ -4,8 +4,8 @@ Modules: :mod:`.scheme` (settings, state, the scheme's parameters and update for
 :mod:`.residual` (dynamic residual and iteration matrix from element kernels),
 :mod:`.memory` (what Newton carries between steps: the reused matrix and the predictor),
 :mod:`.newton` (one step: modified Newton, its implicit derivative, sub-stepping),
-:mod:`.rollout` (start state, ``simulate``, energy), :mod:`.driver` (host driver in
-compiled chunks with progress).
+:mod:`.rollout` (start state, ``simulate`` with its closed-loop control hook, energy),
+:mod:`.driver` (host driver in compiled chunks with progress).
 """
 from .driver import rollout
 from .residual import dynamic_residual, element_inertia

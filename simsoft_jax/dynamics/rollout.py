@@ -4,10 +4,12 @@ the steps) and the energy of a state.
 ``simulate(model, settings, state=None)`` reads everything from the one Model: inertia
 (element mass matrices computed inside the trace), loads and their time laws, drive
 tables, initial velocities. Gradients go through each step's Newton solve by the implicit
-function theorem (``differentiable=True``).
+function theorem (``differentiable=True``). Closed-loop control: a policy called at the
+start of every step returns the Model that step is solved with (:func:`actuated`).
 """
 from __future__ import annotations
 
+import dataclasses
 from typing import NamedTuple
 
 import jax
@@ -40,7 +42,8 @@ class Trajectory(NamedTuple):
     multipliers (T,M): at the saved times, the joint multipliers or the tensions (N) of
     displacement-controlled tendons (:func:`~.residual.border_sizes`; None without
     either); the start's row is 0 (not solved: the start accelerations take the tendons
-    slack)."""
+    slack). control_memory: the controller's memory after the last step of a closed-loop
+    rollout that carries one (:func:`simulate`; None otherwise)."""
     time: jax.Array
     R: jax.Array
     p: jax.Array
@@ -54,6 +57,7 @@ class Trajectory(NamedTuple):
     cause: jax.Array
     residual: jax.Array
     multipliers: jax.Array | None = None
+    control_memory: object = None
 
     def message(self) -> str:
         """How the run ended, in words (concrete, unbatched results)."""
@@ -101,7 +105,8 @@ def initial_state(model: Model, t0=0.0, inert=None) -> State:
 
 
 def simulate(model: Model, settings: DynamicSettings, state: State | None = None,
-             differentiable: bool = False, throw: bool = False) -> Trajectory:
+             differentiable: bool = False, throw: bool = False, control=None,
+             control_params=None, control_memory=None) -> Trajectory:
     """Roll out ``settings.steps`` steps of size ``settings.dt`` (``lax.scan``).
 
     Compiled once per model structure and set of integer settings: ``dt``, ``rho_inf`` and
@@ -115,15 +120,61 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
     :class:`~simsoft_jax.status.SolveError` instead. ``state`` defaults to
     :func:`initial_state`; it is cast to float64 first, so weakly typed inputs do not
     trigger a recompilation.
+
+    Closed-loop control: ``control(t, state, model, control_params) -> Model`` is called
+    at the start of every step with the :class:`State` there and the step is solved with
+    the Model it returns (zero-order hold over the step; sub-steps too), see
+    :func:`actuated`. With ``control_memory`` (any pytree: an integrator, a filter) the
+    call is ``control(t, state, model, control_params, memory) -> (Model, memory)`` and
+    the last memory is ``Trajectory.control_memory``. Gradients in ``control_params``
+    (and ``control_memory``) go through the whole loop with ``differentiable=True``.
+    ``control`` is part of the compiled program: pass the same function object to reuse
+    it (a new closure or lambda per call compiles again); put what changes in
+    ``control_params``. The default start state has the accelerations of the model the
+    policy returns for it (:func:`initial_state`; the policy is called once more there,
+    its memory update discarded).
     """
     check_built_terms(model, ("viscosity", "mass_damping"))
     if state is not None:
         state = State(*(jnp.asarray(x, jnp.float64) for x in state))
-    traj = _simulate(model, as_traced(settings), state, differentiable=differentiable)
+    if control is None and (control_params is not None or control_memory is not None):
+        raise ValueError("control: control_params and control_memory need a control policy")
+    traj = _simulate(model, as_traced(settings), state, control_params, control_memory,
+                     differentiable=differentiable, control=control)
     if throw:
         raise_if_failed("dynamic", traj.converged, traj.status, traj.cause, traj.failed_at,
                         traj.residual)
     return traj
+
+
+def actuated(control, params, state: State, model: Model, memory):
+    """The Model a step from ``state`` is solved with, and the controller's next memory:
+    ``control(state.t, state, model, params)`` (memory None) or ``control(state.t, state,
+    model, params, memory) -> (Model, memory)``. The policy must return ``model`` with
+    arrays replaced (``model.replace(...)``): same structure, same shapes; a ValueError
+    names the first field that differs."""
+    if memory is None:
+        out = control(state.t, state, model, params)
+    else:
+        out, memory = control(state.t, state, model, params, memory)
+    if not isinstance(out, Model):
+        raise ValueError(f"control: the policy returned {type(out).__name__}, not a Model "
+                         "(return model.replace(...))")
+    if out.structure != model.structure:
+        raise ValueError("control: the policy changed model.structure (only arrays may be "
+                         "replaced)")
+    for field in dataclasses.fields(Model)[1:]:   # the arrays after the structure
+        given, got = getattr(model, field.name), getattr(out, field.name)
+        if (jax.tree_util.tree_structure(given) != jax.tree_util.tree_structure(got)
+                or [jnp.shape(x) for x in jax.tree_util.tree_leaves(given)]
+                != [jnp.shape(x) for x in jax.tree_util.tree_leaves(got)]):
+            raise ValueError(f"control: the policy changed the shape of model.{field.name}")
+    return out, memory
+
+
+def _same_inertia(a: Model, b: Model) -> bool:
+    """The arrays the element inertia is computed from are the same objects (trace time)."""
+    return a.inertia is b.inertia and a.d0 is b.d0 and a.length is b.length
 
 
 class _StepCarry(NamedTuple):
@@ -134,50 +185,67 @@ class _StepCarry(NamedTuple):
     cause: jax.Array
     residual: jax.Array
     memory: object
+    control: object = None
 
 
-def first_carry(model: Model, state: State) -> _StepCarry:
-    """What the steps carry at the start of a rollout from ``state``: no failure yet and
-    an empty Newton memory."""
+def first_carry(model: Model, state: State, control_memory=None) -> _StepCarry:
+    """What the steps carry at the start of a rollout from ``state``: no failure yet, an
+    empty Newton memory and the controller's memory (None without one)."""
     return _StepCarry(state, jnp.array(False), jnp.array(jnp.nan),
                       jnp.array(int(Status.CONVERGED)), jnp.array(int(Status.NOT_RUN)),
                       jnp.array(jnp.nan), empty_newton_memory(
                           model.structure.n_nodes, *border_sizes(model.structure),
-                          model.structure.identity_nodes()))
+                          model.structure.identity_nodes()), control_memory)
 
 
-def stepper(model: Model, inert, settings: DynamicSettings, differentiable: bool):
+def stepper(model: Model, inert, settings: DynamicSettings, differentiable: bool,
+            control=None, control_params=None):
     """One time step of size ``settings.dt`` as a ``lax.scan`` body ``(carry, _) ->
     (carry, (iterations, substeps))``; after the first failure the state stays frozen and
-    the carry keeps the time, status, cause and residual of that failure."""
+    the carry keeps the time, status, cause and residual of that failure. With a
+    ``control`` policy the step is solved with the Model of :func:`actuated` (the element
+    inertia is computed again only when the policy replaced what it depends on)."""
     def step(c: _StepCarry, _):
+        m, ine, control_memory = model, inert, c.control
+        if control is not None:
+            m, control_memory = actuated(control, control_params, c.state, model,
+                                         c.control)
+            ine = inert if _same_inertia(m, model) else element_inertia(m)
         if differentiable:
-            att = attempt(model, inert, settings, c.state, settings.dt, True, c.memory)
+            att = attempt(m, ine, settings, c.state, settings.dt, True, c.memory)
             new, its, subs, memory = att.state, att.iterations, jnp.array(1), att.memory
             status, cause, residual = att.status, att.status, att.residual
         else:
-            adv = advance(model, inert, settings, c.state, c.memory)
+            adv = advance(m, ine, settings, c.state, c.memory)
             new, its, subs, memory = adv.state, adv.iterations, adv.substeps, adv.memory
             status, cause, residual = adv.status, adv.cause, adv.residual
         ok = (status == Status.CONVERGED) & ~c.failed
-        new = jax.tree_util.tree_map(lambda x, y: jnp.where(ok, x, y), new, c.state)
+        hold = lambda x, y: jnp.where(ok, x, y)  # noqa: E731
+        new = jax.tree_util.tree_map(hold, new, c.state)
+        control_memory = jax.tree_util.tree_map(hold, control_memory, c.control)
         first = ~c.failed & ~ok
         keep = lambda now, before: jnp.where(first, now, before)  # noqa: E731
         return _StepCarry(new, c.failed | ~ok, keep(c.state.t, c.failed_at),
                           keep(status, c.status), keep(cause, c.cause),
-                          keep(residual, c.residual), memory), (its, subs)
+                          keep(residual, c.residual), memory, control_memory), (its, subs)
     return step
 
 
-@jit(static_argnames=("differentiable",))
+@jit(static_argnames=("differentiable", "control"))
 def _simulate(model: Model, settings: DynamicSettings, state: State | None,
-              differentiable: bool = False) -> Trajectory:
+              control_params=None, control_memory=None, differentiable: bool = False,
+              control=None) -> Trajectory:
     if differentiable and model.structure.slide_drives:
         raise ValueError("constraints: differentiable=True does not support drives with "
                          "slides_along yet (the implicit-function derivative would be wrong)")
     inert = element_inertia(model)
-    state = initial_state(model, 0.0, inert) if state is None else state
-    step = stepper(model, inert, settings, differentiable)
+    if state is None:
+        state = initial_state(model, 0.0, inert)
+        if control is not None:   # accelerations consistent with the first step's model
+            first_model = actuated(control, control_params, state, model, control_memory)[0]
+            state = initial_state(first_model, 0.0, inert if _same_inertia(
+                first_model, model) else None)
+    step = stepper(model, inert, settings, differentiable, control, control_params)
 
     def save_block(c, _):
         c, (its, subs) = jax.lax.scan(jax.checkpoint(step) if differentiable else step, c,
@@ -186,18 +254,19 @@ def _simulate(model: Model, settings: DynamicSettings, state: State | None,
         return c, (st.t, st.R, st.p, st.v, its, subs, c.memory.multipliers)
 
     n_saves = settings.steps // settings.save_every
-    first = first_carry(model, state)
+    first = first_carry(model, state, control_memory)
     final, (t, R, p, v, its, subs, mu) = jax.lax.scan(save_block, first, None,
                                                       length=n_saves)
     cat = lambda first, rest: jnp.concatenate([first[None], rest])  # noqa: E731
     converged = ~final.failed
-    R, p, v = (poison_gradient(converged, x, (model, state)) for x in
+    inputs = (model, state, control_params, control_memory)
+    R, p, v = (poison_gradient(converged, x, inputs) for x in
                (cat(state.R, R), cat(state.p, p), cat(state.v, v)))
     # None without multipliers: a zero-size output would trouble batched maps
     mu = cat(first.memory.multipliers, mu) if mu.shape[-1] else None
     return Trajectory(cat(state.t, t), R, p, v, converged, final.failed_at,
                       its.reshape(-1), subs.reshape(-1), final.state, final.status,
-                      final.cause, final.residual, mu)
+                      final.cause, final.residual, mu, final.control)
 
 
 def energy(model: Model, R, p, v):
