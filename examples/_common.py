@@ -49,6 +49,22 @@ def save(fig, out: Path, name: str) -> Path:
     return path
 
 
+# The soft arm of the closed-loop control examples (mpc_tendon_tracking, learn_policy):
+# length m, axial stiffness N, bending stiffness N m^2, tendon offset m.
+ARM_LENGTH, ARM_EA, ARM_EI, ARM_OFFSET = 0.2, 50.0, 2e-4, 0.005
+
+
+def tendon_arm(elements: int) -> dict:
+    """The control examples' arm as a ``[[rods]]`` table: a straight 0.2 m rod named
+    "arm" (bending stiffness 2e-4 N m^2, mass-proportional damping 10 1/s)."""
+    return {"name": "arm", "elements": elements,
+            "geometry": {"kind": "straight", "length": ARM_LENGTH},
+            "material": {"E": 1e6, "nu": 0.5, "density": 1000.0, "mass_damping": 10.0},
+            "stiffness": {"EA": ARM_EA, "GAy": 20.0, "GAz": 20.0, "GJ": 1.5e-4,
+                          "EIy": ARM_EI, "EIz": ARM_EI},
+            "inertia": {"rhoA": 0.03, "rhoJ": 1e-4, "rhoIy": 1e-4, "rhoIz": 1e-4}}
+
+
 def write_summary(out: Path, summary: dict) -> Path:
     """Write ``summary.json`` (plain JSON types) into ``out``."""
     path = out / "summary.json"

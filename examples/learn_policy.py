@@ -31,9 +31,10 @@ import optax
 import simsoft_jax as sj
 from simsoft_jax import control
 
-from _common import parse_args, save, write_summary
+from _common import (ARM_EA, ARM_EI, ARM_LENGTH, ARM_OFFSET, parse_args, save, tendon_arm,
+                     write_summary)
 
-L, EA, EI, R = 0.2, 50.0, 2e-4, 0.005        # m, N, N m^2, m
+L, EA, EI, R = ARM_LENGTH, ARM_EA, ARM_EI, ARM_OFFSET   # m, N, N m^2, m
 DT, RAMP = 0.05, 0.5                          # s
 START_GAINS = (1.0, 1.0, 0.02)                # kp N/m, ki N/(m s), kd N s/m
 CHECK_STEPS = 300                             # the learned gains' long run (15 s)
@@ -43,12 +44,7 @@ def scene(elements):
     """The arm and its tendon (tension set by the controller)."""
     return {
         "solver": {"kind": "dynamic", "t_end": 1.0, "dt": DT},
-        "rods": [{"name": "arm", "elements": elements,
-                  "geometry": {"kind": "straight", "length": L},
-                  "material": {"E": 1e6, "nu": 0.5, "density": 1000.0, "mass_damping": 10.0},
-                  "stiffness": {"EA": EA, "GAy": 20.0, "GAz": 20.0, "GJ": 1.5e-4,
-                                "EIy": EI, "EIz": EI},
-                  "inertia": {"rhoA": 0.03, "rhoJ": 1e-4, "rhoIy": 1e-4, "rhoIz": 1e-4}}],
+        "rods": [tendon_arm(elements)],
         "constraints": [{"kind": "clamp", "rod": "arm", "node": 0}],
         "tendons": [{"name": "t", "rod": "arm", "from_node": 0, "to_node": -1,
                      "offset": [0.0, R], "tension": 0.0}],

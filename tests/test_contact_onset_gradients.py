@@ -69,6 +69,35 @@ def test_thrown_from_gap_zero_with_friction_gradients_match_finite_differences(k
                                atol=1e-9)
 
 
+@pytest.mark.slow
+def test_thrown_onto_a_stiff_plane_the_differentiable_rollout_sub_steps_like_the_plain_one():
+    """The robustness issue's case: 10 elements, the default contact stiffness, dt = 0.01.
+    The impact needs sub-steps; the differentiable rollout takes the same ones (its
+    trajectory equals the plain rollout's) and its gradient in ``v0`` is finite and equals
+    central finite differences (it was NaN: the differentiable step did not sub-step)."""
+    scene = thrown("plane")
+    scene["rods"][0]["elements"] = 10
+    del scene["contact"]["stiffness"]
+    scene["solver"].update(dt=0.01, t_end=0.1)
+    model = sj.build_model(sj.Scene.from_dict(scene))
+    settings = sj.DynamicSettings(dt=0.01, steps=10)
+    plain = sj.simulate(model, settings)
+    smooth = sj.simulate(model, settings, differentiable=True)
+    assert bool(plain.converged) and bool(smooth.converged), smooth.message()
+    assert int(np.max(plain.substeps)) > 1                     # the impact was sub-stepped
+    np.testing.assert_allclose(smooth.p, plain.p, rtol=0, atol=1e-12)
+    weights = jnp.asarray([0.3, -0.2, 1.0])
+    both = jax.jit(jax.value_and_grad(lambda v0: jnp.dot(sj.simulate(
+        model.replace(v0=v0), settings, differentiable=True).p[-1, -1], weights)))
+    _, grad = both(model.v0)
+    assert bool(jnp.all(jnp.isfinite(grad)))
+    direction = jnp.asarray(np.random.default_rng(1).standard_normal(model.v0.shape))
+    e = 1e-6
+    fd = (float(both(model.v0 + e * direction)[0])
+          - float(both(model.v0 - e * direction)[0])) / (2 * e)
+    np.testing.assert_allclose(float(jnp.vdot(grad, direction)), fd, rtol=1e-4, atol=1e-9)
+
+
 def test_penalty_and_friction_formulas_have_finite_derivatives_at_onset():
     """psi, psi' at zero penetration and at the end of the cubic start; the quasi-static
     friction line load at zero normal force and zero slip (the dynamic one is the same

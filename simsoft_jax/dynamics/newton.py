@@ -214,38 +214,69 @@ def _implicit_increment_jvp(primals, tangents):
 
 
 class Attempt(NamedTuple):
-    """One step attempt: the new state, Newton iterations, status, residual, memory."""
+    """One step attempt: the new state, Newton iterations, status, residual, memory, and
+    the solved increment (N,6) with its multipliers (M,)."""
     state: object
     iterations: jax.Array
     status: jax.Array
     residual: jax.Array
     memory: NewtonMemory
+    increment: jax.Array
+    multipliers: jax.Array
 
 
-def attempt(model, inert, settings, state, h, differentiable, memory) -> Attempt:
-    """One generalized-alpha step of size h; an accepted step becomes the predictor's
-    history. With ``differentiable`` the increment carries the implicit derivative. A
-    converged step that an impact makes too long for its contact time ends with status
-    ``CONTACT_UNRESOLVED`` (:func:`~.contact_time.unresolved`)."""
-    new_state = step_functions(model, inert, settings.rho_inf, state, h).new_state
+def attempt(model, inert, settings, state, h, memory) -> Attempt:
+    """One generalized-alpha step of size h (no derivative: :func:`replay` gives it); an
+    accepted step becomes the predictor's history. A converged step that an impact makes
+    too long for its contact time ends with status ``CONTACT_UNRESOLVED``
+    (:func:`~.contact_time.unresolved`)."""
     m, ine, se, st, hh, mem = jax.lax.stop_gradient((model, inert, settings, state, h, memory))
     res = newton_step(m, ine, se, st, hh, mem)
-    w = res.w
-    if differentiable:
-        w = _implicit_increment(model, inert, settings, state, h, w, res.memory.multipliers)
-    state1 = new_state(w)
+    state1 = step_functions(m, ine, se.rho_inf, st, hh).new_state(res.w)
     # a converged step that an impact makes too long is refused (.contact_time)
-    status = jnp.where((res.status == Status.CONVERGED)
-                       & unresolved(m, st, jax.lax.stop_gradient(state1), hh),
+    status = jnp.where((res.status == Status.CONVERGED) & unresolved(m, st, state1, hh),
                        Status.CONTACT_UNRESOLVED, res.status)
     memory = remember_step(res.memory, st.vd, hh, status == Status.CONVERGED)
-    return Attempt(state1, res.iterations, status, res.residual, memory)
+    return Attempt(state1, res.iterations, status, res.residual, memory, res.w,
+                   res.memory.multipliers)
+
+
+class SubSteps(NamedTuple):
+    """The accepted sub-steps of one macro step, in order, for :func:`replay`: fractions
+    (K,) of dt (0 past ``count``), increments (K,N,6) and multipliers (K,M); K =
+    ``2**max_halvings``, the most sub-steps a macro step can take."""
+    fractions: jax.Array
+    increments: jax.Array
+    multipliers: jax.Array
+
+
+def replay(model, inert, settings, state, sub: SubSteps, count):
+    """The end state of a macro step from ``state`` through its ``count`` accepted
+    sub-steps ``sub`` (found by :func:`advance`), each increment carrying the implicit
+    derivative of its step (:func:`_implicit_increment`): the value is the solved one, and
+    ``jax.grad`` / ``jax.jvp`` through it are those of the sub-stepped solution. Unused
+    slots are skipped (``lax.cond``: no work, forward or backward)."""
+    def slot(st, xs):
+        i, fraction, w, mu = xs
+
+        def go(st):
+            h = fraction * settings.dt
+            w_d = _implicit_increment(model, inert, settings, st, h, w, mu)
+            return step_functions(model, inert, settings.rho_inf, st, h).new_state(w_d)
+
+        return jax.lax.cond(i < count, go, lambda st: st, st), None
+
+    k = sub.fractions.shape[0]
+    end, _ = jax.lax.scan(slot, state, (jnp.arange(k), sub.fractions, sub.increments,
+                                        sub.multipliers))
+    return end
 
 
 class Advance(NamedTuple):
     """One macro step: state, Newton iterations (all sub-steps), accepted sub-steps,
     status (CONVERGED or STEP_TOO_SMALL), cause (last Newton failure, NOT_RUN if none),
-    residual (at the last attempt), memory."""
+    residual (at the last attempt), memory; sub: the accepted sub-steps (:class:`SubSteps`,
+    only when asked for, else None)."""
     state: object
     iterations: jax.Array
     substeps: jax.Array
@@ -253,6 +284,7 @@ class Advance(NamedTuple):
     cause: jax.Array
     residual: jax.Array
     memory: NewtonMemory
+    sub: SubSteps = None
 
 
 class _AdvanceCarry(NamedTuple):
@@ -264,31 +296,46 @@ class _AdvanceCarry(NamedTuple):
     cause: jax.Array
     residual: jax.Array
     memory: NewtonMemory
+    sub: SubSteps
 
 
-def advance(model, inert, settings, state, memory) -> Advance:
+def advance(model, inert, settings, state, memory, keep_substeps: bool = False) -> Advance:
     """One macro step of size dt, with sub-stepping on failure (halve, up to max_halvings;
-    after a success the sub-step doubles again, up to dt)."""
+    after a success the sub-step doubles again, up to dt). ``keep_substeps``: also record
+    the accepted sub-steps (:class:`SubSteps`) for :func:`replay`."""
     dt = settings.dt
     t_target = state.t + dt
     h_min = dt / 2.0**settings.max_halvings
 
     def body(c: _AdvanceCarry) -> _AdvanceCarry:
         h_try = jnp.minimum(c.h, t_target - c.state.t)
-        att = attempt(model, inert, settings, c.state, h_try, False, c.memory)
+        att = attempt(model, inert, settings, c.state, h_try, c.memory)
         ok = att.status == Status.CONVERGED
         st = jax.tree_util.tree_map(lambda x, y: jnp.where(ok, x, y), att.state, c.state)
         h = jnp.where(ok, jnp.minimum(2.0 * c.h, dt), 0.5 * c.h)
+        sub = c.sub
+        if keep_substeps:
+            slot = jnp.where(ok, c.substeps, sub.fractions.shape[0])   # out of range: dropped
+            sub = SubSteps(sub.fractions.at[slot].set(h_try / dt, mode="drop"),
+                           sub.increments.at[slot].set(att.increment, mode="drop"),
+                           sub.multipliers.at[slot].set(att.multipliers, mode="drop"))
         return _AdvanceCarry(st, h, c.iterations + att.iterations, c.substeps + ok,
                              c.failed | (h < h_min * (1 - 1e-12)),
-                             jnp.where(ok, c.cause, att.status), att.residual, att.memory)
+                             jnp.where(ok, c.cause, att.status), att.residual, att.memory,
+                             sub)
 
     def running(c: _AdvanceCarry):
         return (c.state.t < t_target - 1e-12 * dt) & ~c.failed
 
     zero = jnp.array(0)
+    sub = None
+    if keep_substeps:
+        k = 2 ** settings.max_halvings
+        sub = SubSteps(jnp.zeros(k), jnp.zeros((k,) + state.p.shape[:1] + (6,)),
+                       jnp.zeros((k,) + memory.multipliers.shape))
     c = jax.lax.while_loop(running, body, _AdvanceCarry(
         state, jnp.asarray(dt, jnp.float64), zero, zero, jnp.array(False),
-        jnp.array(int(Status.NOT_RUN)), jnp.array(0.0), memory))
+        jnp.array(int(Status.NOT_RUN)), jnp.array(0.0), memory, sub))
     status = jnp.where(c.failed, Status.STEP_TOO_SMALL, Status.CONVERGED)
-    return Advance(c.state, c.iterations, c.substeps, status, c.cause, c.residual, c.memory)
+    return Advance(c.state, c.iterations, c.substeps, status, c.cause, c.residual, c.memory,
+                   c.sub)

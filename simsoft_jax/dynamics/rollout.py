@@ -25,7 +25,7 @@ from ..model import Model, check_built_terms
 from ..statics import as_traced
 from ..status import Status, describe, poison_gradient, raise_if_failed
 from .memory import empty_newton_memory
-from .newton import advance, attempt
+from .newton import advance, replay
 from .residual import border_sizes, dynamic_residual, element_inertia
 from .scheme import DynamicSettings, State
 
@@ -111,10 +111,11 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
 
     Compiled once per model structure and set of integer settings: ``dt``, ``rho_inf`` and
     ``tolerance`` are traced, so a study over them does not recompile.
-    ``differentiable=True`` makes every step a single Newton solve differentiated by the
-    implicit function theorem (checkpointed scan: memory O(saved states)); a step that
-    fails is then reported (no sub-stepping), and derivatives of a failed rollout are NaN.
-    Otherwise failed steps are retried with halved sub-steps. After the first failure the
+    A step whose Newton solve fails is retried with halved sub-steps (down to
+    ``dt / 2**max_halvings``). ``differentiable=True`` differentiates every accepted
+    (sub-)step by the implicit function theorem at its solution
+    (:func:`~.newton.replay`; checkpointed scan: memory O(saved states)); derivatives of a
+    failed rollout are NaN. After the first failure the
     state is frozen and ``converged`` is False, ``failed_at`` the time of the failing step,
     ``status``/``cause``/:meth:`Trajectory.message` say why. ``throw=True`` raises
     :class:`~simsoft_jax.status.SolveError` instead. ``state`` defaults to
@@ -211,14 +212,12 @@ def stepper(model: Model, inert, settings: DynamicSettings, differentiable: bool
             m, control_memory = actuated(control, control_params, c.state, model,
                                          c.control)
             ine = inert if _same_inertia(m, model) else element_inertia(m)
-        if differentiable:
-            att = attempt(m, ine, settings, c.state, settings.dt, True, c.memory)
-            new, its, subs, memory = att.state, att.iterations, jnp.array(1), att.memory
-            status, cause, residual = att.status, att.status, att.residual
-        else:
-            adv = advance(m, ine, settings, c.state, c.memory)
-            new, its, subs, memory = adv.state, adv.iterations, adv.substeps, adv.memory
-            status, cause, residual = adv.status, adv.cause, adv.residual
+        adv = advance(*jax.lax.stop_gradient((m, ine, settings, c.state, c.memory)),
+                      keep_substeps=differentiable)
+        new, its, subs, memory = adv.state, adv.iterations, adv.substeps, adv.memory
+        status, cause, residual = adv.status, adv.cause, adv.residual
+        if differentiable:   # the same sub-steps again, each with its implicit derivative
+            new = replay(m, ine, settings, c.state, adv.sub, adv.substeps)
         ok = (status == Status.CONVERGED) & ~c.failed
         hold = lambda x, y: jnp.where(ok, x, y)  # noqa: E731
         new = jax.tree_util.tree_map(hold, new, c.state)
