@@ -11,9 +11,9 @@ target over the first 0.5 s. The loss is the mean over a batch of targets of the
 squared relative tip-height error over the run; its gradient in the log-gains comes from
 ``jax.vmap`` over the targets of ``simulate(..., control=..., differentiable=True)``
 (one program for the batch, implicit derivative at every step) and drives Adam (optax).
-The loss keeps falling as the gains grow, until the motion gets too violent for a
-single Newton solve per step (the differentiable rollout does not sub-step): a step
-into gains whose rollouts fail is undone and the step halved (counted in the summary).
+The loss keeps falling as the gains grow, until the motion gets too violent for the
+steps, even halved: a step into gains whose rollouts fail is undone and the step halved
+(counted in the summary).
 
 Printed and saved: the loss and gains at every iteration; for the initial and the
 learned gains, a longer run (15 s) per target: its final error and the check that it
