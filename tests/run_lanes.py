@@ -3,13 +3,10 @@
     python tests/run_lanes.py [extra pytest arguments]
 
 Lane 1 runs the tests not marked ``slow``, lane 2 the ``slow`` ones (example and notebook
-runs, long rollouts); on a 2-core machine the two take about the same time (13.6 and
-11.9 min for the 87 slow and 1105 other tests on a quiet Intel Xeon VM, measured
-2026-11-25 with the test compile flags of ``tests/conftest.py``, 17.4 and 15.3 min on
-the same VM running slower later that day; 25 and 22 min on the
-shared AMD EPYC of earlier runs; one ``python -m pytest -q`` of a smaller suite before the
-split took 34 min there). Each lane's output goes to a log file and is printed whole
-when the lane ends (never interleaved); the last line sums both lanes in pytest's words
+runs, long rollouts): 15 and 19 min for the 1244 other and 105 slow tests on a quiet
+2-core AMD EPYC VM with the test compile flags of ``tests/conftest.py``. Each lane's
+output goes to a log file and is printed whole when the lane ends (never interleaved);
+the last line sums both lanes in pytest's words
 (``total: N passed, N failed, N skipped``). The exit status is 0 only when both lanes pass
 (a lane that selects no test at all, pytest's status 5, counts as passed).
 """
