@@ -104,24 +104,6 @@ def element_force_and_tangent(P, d, stress, stress_jacobian, RA, length, dead, f
     return f, k
 
 
-def element_term_and_tangent(model: Model, R, p, term):
-    """Nodal forces (E,12) and left-invariant tangents (E,12,12) of one element term
-    ``term(el, data) -> (12,)`` (:mod:`simsoft_jax.terms`), the tangent by ``jax.jacfwd``
-    in the 12 right perturbations of the two nodal frames."""
-    def one(RA, pA, RB, pB, data):
-        def f(y):
-            RA1, pA1 = lie.compose_exp(RA, pA, y[:6])
-            RB1, pB1 = lie.compose_exp(RB, pB, y[6:])
-            zero = jnp.zeros(12, RA.dtype)
-            value = term(element_state(RA1, pA1, RB1, pB1, zero, zero), data)
-            return value, value
-
-        jac, value = jax.jacfwd(f, has_aux=True)(jnp.zeros(12, RA.dtype))
-        return value, jac
-
-    return jax.vmap(one)(*element_poses(model, R, p), element_data(model))
-
-
 def contact_and_tangent(model: Model, R, p, v=None):
     """Nodal forces (E,12) of the contact with the obstacles
     (:mod:`simsoft_jax.terms.contact`), their left-invariant tangents (E,12,12) and, in
