@@ -62,16 +62,18 @@ def test_non_finite_residual_ends_with_a_status():
 
 
 def test_failed_rollout_status_and_nan_gradient():
-    """A dynamic step that cannot converge in one Newton iteration (max_iterations = 1)
-    with no sub-stepping (differentiable): the run stops at t = 0 with a status, and its
-    derivative is NaN; throw=True raises."""
+    """A dynamic step that cannot converge in one Newton iteration (max_iterations = 1),
+    whatever its sub-step (the differentiable rollout sub-steps like the plain one): the
+    run stops at t = 0 with a status (sub-step too small) and its cause (the iteration
+    limit), and its derivative is NaN; throw=True raises."""
     scene = dict(BEAM, solver={"kind": "dynamic", "t_end": 0.1, "dt": 0.01},
                  loads=[{"kind": "force", "rod": "beam", "node": -1, "vector": [0, 0, -0.5]}])
     model = sj.build_model(sj.Scene.from_dict(scene))
     settings = sj.DynamicSettings(dt=0.01, steps=5, max_iterations=1)
     traj = sj.simulate(model, settings, differentiable=True)
     assert not bool(traj.converged) and float(traj.failed_at) == 0.0
-    assert sj.Status(int(traj.status)) == sj.Status.MAX_ITERATIONS
+    assert sj.Status(int(traj.status)) == sj.Status.STEP_TOO_SMALL
+    assert sj.Status(int(traj.cause)) == sj.Status.MAX_ITERATIONS
     assert "failed at t = 0 s" in traj.message()
     grad = jax.grad(lambda k: sj.simulate(model.replace(stiffness=model.stiffness * k), settings,
                                           differentiable=True).p[-1, -1, 2])(1.0)
