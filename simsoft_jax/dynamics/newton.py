@@ -254,22 +254,29 @@ def replay(model, inert, settings, state, sub: SubSteps, count):
     """The end state of a macro step from ``state`` through its ``count`` accepted
     sub-steps ``sub`` (found by :func:`advance`), each increment carrying the implicit
     derivative of its step (:func:`_implicit_increment`): the value is the solved one, and
-    ``jax.grad`` / ``jax.jvp`` through it are those of the sub-stepped solution. Unused
-    slots are skipped (``lax.cond``: no work, forward or backward)."""
+    ``jax.grad`` / ``jax.jvp`` through it are those of the sub-stepped solution. A step
+    taken whole (``count == 1``, the common case) is one increment; only a sub-stepped one
+    runs the scan over the slots, where unused slots are skipped (``lax.cond``: no work,
+    forward or backward)."""
+    def sub_step(st, fraction, w, mu):
+        h = fraction * settings.dt
+        w_d = _implicit_increment(model, inert, settings, st, h, w, mu)
+        return step_functions(model, inert, settings.rho_inf, st, h).new_state(w_d)
+
     def slot(st, xs):
         i, fraction, w, mu = xs
+        return jax.lax.cond(i < count, lambda st: sub_step(st, fraction, w, mu),
+                            lambda st: st, st), None
 
-        def go(st):
-            h = fraction * settings.dt
-            w_d = _implicit_increment(model, inert, settings, st, h, w, mu)
-            return step_functions(model, inert, settings.rho_inf, st, h).new_state(w_d)
+    def whole(st):
+        return sub_step(st, sub.fractions[0], sub.increments[0], sub.multipliers[0])
 
-        return jax.lax.cond(i < count, go, lambda st: st, st), None
+    def in_pieces(st):
+        k = sub.fractions.shape[0]
+        return jax.lax.scan(slot, st, (jnp.arange(k), sub.fractions, sub.increments,
+                                       sub.multipliers))[0]
 
-    k = sub.fractions.shape[0]
-    end, _ = jax.lax.scan(slot, state, (jnp.arange(k), sub.fractions, sub.increments,
-                                        sub.multipliers))
-    return end
+    return jax.lax.cond(count == 1, whole, in_pieces, state)
 
 
 class Advance(NamedTuple):
