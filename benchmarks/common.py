@@ -137,9 +137,9 @@ def compile_dynamic(model, settings, state):
     """(lowered, compiled) rollout of ``settings.steps`` steps from ``state`` (e.g.
     ``sj.initial_state(model)``, computed outside the timed program) for this model
     structure, called as ``compiled(model, settings, state)``."""
-    from simsoft_jax.dynamics.rollout import _simulate
+    from simsoft_jax.dynamics.rollout import rollout_program
 
-    lowered = _simulate.lower(model, settings, state)
+    lowered = rollout_program.lower(model, settings, state)
     return lowered, lowered.compile()
 
 

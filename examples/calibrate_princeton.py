@@ -1,4 +1,4 @@
-"""Calibrating section stiffness from positions (issue 5, demonstrations 3a and 3b).
+"""Calibrating section stiffness from positions: identifiability (a) and a held-out test (b).
 
     python examples/calibrate_princeton.py [--out DIR] [--fast] [--data CSV]
 

@@ -1,4 +1,4 @@
-"""Batched sweep: the Princeton tip deflection over load angle x load (issue 5.5).
+"""Batched sweep: the Princeton tip deflection over load angle x load.
 
     python examples/princeton_sweep.py [--out DIR] [--fast]
 

@@ -225,7 +225,7 @@ def test_dt_study_compiles_once():
     """Five time steps, two rho_inf and two tolerances on one structure: one compilation
     of the rollout (dt, rho_inf and tolerance are traced), and each run differs."""
     model = sj.build_model(sj.Scene.from_dict(dynamic_scene()))
-    counter = _CompileCounter("_simulate")
+    counter = _CompileCounter("rollout_program")
     logger = logging.getLogger("jax")
     logger.addHandler(counter)
     level = logger.level

@@ -140,7 +140,7 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
         state = State(*(jnp.asarray(x, jnp.float64) for x in state))
     if control is None and (control_params is not None or control_memory is not None):
         raise ValueError("control: control_params and control_memory need a control policy")
-    traj = _simulate(model, as_traced(settings), state, control_params, control_memory,
+    traj = rollout_program(model, as_traced(settings), state, control_params, control_memory,
                      differentiable=differentiable, control=control)
     if throw:
         raise_if_failed("dynamic", traj.converged, traj.status, traj.cause, traj.failed_at,
@@ -231,7 +231,7 @@ def stepper(model: Model, inert, settings: DynamicSettings, differentiable: bool
 
 
 @jit(static_argnames=("differentiable", "control"))
-def _simulate(model: Model, settings: DynamicSettings, state: State | None,
+def rollout_program(model: Model, settings: DynamicSettings, state: State | None,
               control_params=None, control_memory=None, differentiable: bool = False,
               control=None) -> Trajectory:
     if differentiable and model.structure.slide_drives:
