@@ -15,13 +15,14 @@ tendon would have to push: it is returned as is and reported by the caller (slac
 """
 from __future__ import annotations
 
-from functools import partial
+import dataclasses
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from . import actuator_tables, element
+from .newton import implicit
 from .terms import tendons
 
 MAX_ITERATIONS = 30
@@ -75,18 +76,34 @@ def newton_solve(solve, model, settings, tolerance):
     return t, ok
 
 
-@partial(jax.custom_jvp, nondiff_argnums=(0,))
-def _implicit_tensions(solve, model, settings, t):
-    return t
+@dataclasses.dataclass(frozen=True)
+class TensionProblem:
+    """The tensions t (K,) of the displacement-controlled tendons as an implicit problem
+    for :func:`simsoft_jax.newton.implicit`: ``F(t) = 0`` (:func:`_mismatch`) with
+    ``params = (model, settings)``; ``dt = -(dF/dt)^-1 dF/dtheta`` with the exact
+    Jacobian (K,K) from the equilibrium's implicit derivative (module docstring).
+    ``equilibrium``: the tension-controlled static solve."""
+    equilibrium: object
 
+    def prescribed(self, params, t):
+        return jnp.zeros_like(t)
 
-@_implicit_tensions.defjvp
-def _implicit_tensions_jvp(solve, primals, tangents):
-    model, settings, t = primals
-    dmodel = tangents[0]
-    jac = jax.jacfwd(lambda u: _mismatch(solve, model, settings, u)[0])(t)
-    _, df = jax.jvp(lambda m: _mismatch(solve, m, settings, t)[0], (model,), (dmodel,))
-    return t, -jnp.linalg.solve(jac, df)
+    def residual(self, params, t, delta):
+        model, settings = params
+        return _mismatch(self.equilibrium, model, settings, t + delta)[0]
+
+    def linear_solve(self, params, t, rhs):
+        jac = jax.jacfwd(lambda d: self.residual(params, t, d))(jnp.zeros_like(t))
+        return jnp.linalg.solve(jac, rhs)
+
+    def merge(self, params, free, moved):
+        return free
+
+    def push(self, params, t, delta):
+        return delta
+
+    def valid(self, params):
+        return True
 
 
 def solve_tensions(solve, model, settings, tolerance):
@@ -96,6 +113,6 @@ def solve_tensions(solve, model, settings, tolerance):
     (it must close over no traced value); the lengths are matched to ``tolerance`` (m)."""
     settings = jax.lax.stop_gradient(settings)
     t, ok = newton_solve(solve, jax.lax.stop_gradient(model), settings, tolerance)
-    t = _implicit_tensions(solve, model, settings, t)
+    t = implicit(TensionProblem(solve), (model, settings), t)
     idx = jnp.asarray(displaced(model.structure))
     return model.replace(tendon_tension=model.tendon_tension.at[idx].set(t)), ok

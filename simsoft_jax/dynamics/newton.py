@@ -9,16 +9,18 @@ eliminated: their ``w`` is prescribed (spec 4.5). Each failed Newton solve recor
 """
 from __future__ import annotations
 
+import dataclasses
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 
-from .. import mechanisms
+from .. import coupling
 from ..batched import any_lane, select
-from ..linalg import CoupledFactors, factorize_coupled, implicit_solve_coupled, solve_coupled
+from ..linalg import CoupledFactors, factorize_coupled, implicit_solve_coupled
 from ..drives import drive_turn, held_increments, slide_maps
-from ..statics import step_norm, weighted_norm
+from ..newton import (RUNNING, capped, coupled_step, implicit, iterate, ladder, step_norm,
+                      weighted_norm)
 from ..status import Status
 from .contact_time import unresolved
 from .memory import NewtonMemory, predicted_increment, remember_step
@@ -40,7 +42,6 @@ _CONTRACTION_LIMIT = 0.1
 # scene from 894 to 778 Newton iterations and silicone from 1051 to 871 (0.01-0.05 all
 # gain); with it, a rebuild limit of 0.2 saves builds (synthetic 16.2 -> 15.0 ms).
 _RENEW_CONTRACTION = 0.03
-_RUNNING = -1
 
 
 class _NewtonCarry(NamedTuple):
@@ -59,14 +60,6 @@ class _NewtonCarry(NamedTuple):
     residual: jax.Array
     mu: jax.Array
     theta: jax.Array
-
-
-def _unknowns(structure, x, z):
-    """Nodal increments (N,6) and multipliers (M,) from the bordered solution (x, z)
-    (rod-rod contact borders auxiliary unknowns, no multipliers)."""
-    if structure.joints:
-        return mechanisms.split(structure, x, z)
-    return (x, z[:0]) if structure.self_contact else (x, z)
 
 
 class StepResult(NamedTuple):
@@ -120,8 +113,9 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
         rotations, or the displacement-controlled tendons' length mismatches /
         char_length, below the tolerance (with a reused matrix the corrections of ``w``
         can shrink long before the constraints are met, so they are tested too)."""
-        if model.structure.joints:
-            return mechanisms.violation_norm(model, r_z)[1] <= settings.tolerance
+        violation = coupling.violation(model, r_z)
+        if violation is not None:
+            return violation[1] <= settings.tolerance
         if r_z.size:
             return jnp.max(jnp.abs(r_z)) <= settings.tolerance * model.char_length
         return True
@@ -134,13 +128,11 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
             lambda w, mu, f: select(c.fresh,
                                     factorize_coupled(*fns.system(w, mu)[1:5], identity), f),
             lambda _, __, f: f, c.w, c.mu, c.factors)
-        dw, dmu = _unknowns(model.structure, *solve_coupled(factors, -r, -r_z))
+        dw, dmu = coupled_step(model, factors, r, r_z)
         if sliding:  # back from slide unknowns to increments (spec: slides_along)
             dw = jnp.einsum("nij,nj->ni", slide_maps(model, state.R, c.w)[1], dw)
         # cap nodal rotation corrections at pi/4 (spec 4.7.6): keeps Newton on the branch
-        rot = jnp.max(jnp.linalg.norm(dw[:, 3:], axis=1))
-        cap = jnp.minimum(1.0, 0.25 * jnp.pi / jnp.maximum(rot, 1e-300))
-        dw, dmu = dw * cap, dmu * cap
+        dw, dmu = capped(0.25 * jnp.pi, dw, dmu)
         size = step_norm(model, dw)
         finite = jnp.all(jnp.isfinite(dw))
         off_branch = jnp.max(jnp.linalg.norm((c.w + dw)[:, 3:], axis=1)) > 0.5 * jnp.pi
@@ -157,12 +149,10 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
         # step that turns a node by pi/2 or more is not resolved (sub-stepped or reported)
         converged = (~reject & finite & ~off_branch & (estimate <= settings.tolerance)
                      & held(r_z))
-        status = jnp.where(converged, Status.CONVERGED, _RUNNING)
-        status = jnp.where((status == _RUNNING) & c.fresh & ~finite, Status.NONFINITE, status)
-        status = jnp.where((status == _RUNNING) & c.fresh & off_branch, Status.OFF_BRANCH,
-                           status)
-        status = jnp.where((status == _RUNNING) & (c.iterations + 1 >= settings.max_iterations),
-                           Status.MAX_ITERATIONS, status)
+        status = ladder(converged, ((c.fresh & ~finite, Status.NONFINITE),
+                                    (c.fresh & off_branch, Status.OFF_BRANCH),
+                                    (c.iterations + 1 >= settings.max_iterations,
+                                     Status.MAX_ITERATIONS)))
         return _NewtonCarry(w_new, c.iterations + 1, status, factors, rebuild,
                             jnp.where(reject, c.previous, size), c.rebuilt | rebuild,
                             weighted_norm(model, r), mu_new,
@@ -171,11 +161,11 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     stale = memory.renew | (jnp.abs(memory.h - h) > 1e-9 * h)
     # drives that turn by pi/2 or more in the step: off the branch before any iteration
     start = (jnp.where(drive_turn(model, state.t, fns.t1) >= 0.5 * jnp.pi, Status.OFF_BRANCH,
-                       _RUNNING) if model.structure.drive_nodes else _RUNNING)
+                       RUNNING) if model.structure.drive_nodes else RUNNING)
     init = _NewtonCarry(w0, jnp.array(0), jnp.asarray(start), memory.factors, stale,
                         jnp.array(jnp.inf), jnp.array(False), jnp.array(jnp.inf),
                         memory.multipliers, jnp.array(0.0))
-    c = jax.lax.while_loop(lambda c: c.status == _RUNNING, body, init)
+    c = iterate(body, init)
     memory = memory._replace(
         factors=c.factors, h=jnp.asarray(h, jnp.float64),
         renew=c.rebuilt | (c.theta > _RENEW_CONTRACTION),
@@ -183,34 +173,43 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     return StepResult(c.w, c.iterations, c.status, c.residual, memory)
 
 
-@jax.custom_jvp
-def _implicit_increment(model, inert, settings, state, h, w, mu):
-    """Identity on a converged step increment ``w`` (with its joint multipliers ``mu``);
-    its derivative is the implicit-function one: ``[dw_free; dmu] = -J^-1 dF`` (the
-    bordered system with joints) with the held dofs following the prescribed motion."""
-    return w
+@dataclasses.dataclass(frozen=True)
+class StepProblem:
+    """One generalized-alpha step as an implicit problem for
+    :func:`simsoft_jax.newton.implicit`: ``params = (model, inert, settings, state, h)``,
+    ``solution = (w, mu)``, the step's increment (N,6) and multipliers (M,) solving
+    ``F(w, mu) = 0`` (spec S66; with joints the bordered system of
+    :mod:`simsoft_jax.mechanisms`): ``[dw_free; dmu] = -J^-1 dF``, the held dofs following
+    their prescribed motion (clamps, drives)."""
 
+    def prescribed(self, params, solution):
+        model, _, _, state, h = params
+        held = 1.0 - model.structure.free_mask()
+        return (held * held_increments(model, state, state.t + h),
+                jnp.zeros_like(solution[1]))
 
-@_implicit_increment.defjvp
-def _implicit_increment_jvp(primals, tangents):
-    model, inert, settings, state, h, w, mu = primals
-    mask = model.structure.free_mask()
+    def residual(self, params, solution, delta):
+        model, inert, settings, state, h = params
+        return step_functions(model, inert, settings.rho_inf, state, h).system_residual(
+            solution[0] + delta[0], solution[1] + delta[1])
 
-    def held(m, st, hh):
-        return held_increments(m, st, st.t + hh)
+    def linear_solve(self, params, solution, rhs):
+        model, inert, settings, state, h = params
+        system = step_functions(model, inert, settings.rho_inf, state, h,
+                                settings.tangent).system(*solution)
+        x, z = implicit_solve_coupled(system.blocks, system.B, system.C, system.D, *rhs,
+                                      model.structure.identity_nodes())
+        return coupling.split(model.structure, x, z)
 
-    def F(m, ine, se, st, hh):  # residual with the free w frozen and the held w prescribed
-        fns = step_functions(m, ine, se.rho_inf, st, hh)
-        return fns.system_residual(jnp.where(mask > 0, w, held(m, st, hh)), mu)
+    def merge(self, params, free, moved):
+        mask = params[0].structure.free_mask()
+        return jnp.where(mask > 0, free[0], moved[0]), free[1]
 
-    primal_args, tangent_args = (model, inert, settings, state, h), tangents[:5]
-    _, (dF, dF_z) = jax.jvp(F, primal_args, tangent_args)
-    _, dheld = jax.jvp(held, (model, state, h), (tangents[0], tangents[3], tangents[4]))
-    system = step_functions(model, inert, settings.rho_inf, state, h,
-                            settings.tangent).system(w, mu)
-    dw, _ = _unknowns(model.structure, *implicit_solve_coupled(
-        *system[1:5], -dF, -dF_z, model.structure.identity_nodes()))
-    return w, jnp.where(mask > 0, dw, dheld)
+    def push(self, params, solution, delta):
+        return delta
+
+    def valid(self, params):
+        return True
 
 
 class Attempt(NamedTuple):
@@ -253,14 +252,14 @@ class SubSteps(NamedTuple):
 def replay(model, inert, settings, state, sub: SubSteps, count):
     """The end state of a macro step from ``state`` through its ``count`` accepted
     sub-steps ``sub`` (found by :func:`advance`), each increment carrying the implicit
-    derivative of its step (:func:`_implicit_increment`): the value is the solved one, and
+    derivative of its step (:class:`StepProblem`): the value is the solved one, and
     ``jax.grad`` / ``jax.jvp`` through it are those of the sub-stepped solution. A step
     taken whole (``count == 1``, the common case) is one increment; only a sub-stepped one
     runs the scan over the slots, where unused slots are skipped (``lax.cond``: no work,
     forward or backward)."""
     def sub_step(st, fraction, w, mu):
         h = fraction * settings.dt
-        w_d = _implicit_increment(model, inert, settings, st, h, w, mu)
+        w_d = implicit(StepProblem(), (model, inert, settings, st, h), (w, mu))[0]
         return step_functions(model, inert, settings.rho_inf, st, h).new_state(w_d)
 
     def slot(st, xs):

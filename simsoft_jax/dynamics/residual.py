@@ -17,7 +17,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .. import inertia, lie, mechanisms, rod_pairs, tendon_control
+from .. import coupling, inertia, lie, rod_pairs, tendon_control
 from ..assembly import (apply_constraints, assemble_blocks, assemble_vector, element_blocks,
                         node_blocks, residual_vector)
 from ..drives import reduce, slide_maps
@@ -42,14 +42,15 @@ def element_inertia(model: Model) -> ElementInertia:
                                                    model.structure.inertia_kind))
 
 
-def dynamic_residual(model: Model, inert: ElementInertia, R, p, v, vd, masked=True):
+def dynamic_residual(model: Model, inert: ElementInertia, R, p, v, vd, masked=True,
+                     contact=True):
     """Global dynamic residual (N,6) (spec S47), held dofs zeroed (unless ``masked=False``),
-    rod-rod contact included (:mod:`simsoft_jax.rod_pairs`; scenes with it have no sliding
-    drive, the only caller of ``masked=False``). ``model`` holds the loads at the time of
-    evaluation (:func:`loads.loads_at`)."""
+    rod-rod contact included unless ``contact=False`` (:mod:`simsoft_jax.rod_pairs`; scenes
+    with it have no sliding drive, the only caller of ``masked=False``). ``model`` holds
+    the loads at the time of evaluation (:func:`loads.loads_at`)."""
     s = model.structure
     r = residual_vector(model, 1.0, R, p, v, vd, inert)
-    if s.self_contact:
+    if s.self_contact and contact:
         r = r + rod_pairs.residual(model, R, p)
     return r * s.free_mask() if masked else r
 
@@ -107,16 +108,11 @@ class StepFunctions(NamedTuple):
 
 def border_sizes(structure) -> tuple[int, int]:
     """``(m, M)``: the unknowns beside the rods' chains in a dynamic step and how many of
-    them are multipliers: the joints' coupling set (:mod:`simsoft_jax.mechanisms`), or
-    one tension per displacement-controlled tendon, or the 6 dofs of each node the
-    rod-rod contact pairs may couple (no multipliers; :mod:`simsoft_jax.rod_pairs`), or
-    none (the scene refuses any two of them in one dynamic scene)."""
-    if structure.joints:
-        return mechanisms.coupling_count(structure), mechanisms.multiplier_count(structure)
-    if structure.self_contact:
-        return 6 * rod_pairs.coupled_nodes(structure), 0
+    them are multipliers: those of the couplings (:func:`simsoft_jax.coupling.border_sizes`:
+    joints or rod-rod contact), or one tension per displacement-controlled tendon (the
+    scene refuses the tendons with a coupling in one dynamic scene)."""
     k = len(tendon_control.displaced(structure))
-    return k, k
+    return (k, k) if k else coupling.border_sizes(structure)
 
 
 def step_functions(model, inert, rho_inf, state: State, h,
@@ -133,16 +129,17 @@ def step_functions(model, inert, rho_inf, state: State, h,
         R1, p1 = jax.vmap(lie.compose_exp)(state.R, state.p, w)
         return State(R1, p1, v1, vd1, a1, t1)
 
-    def residual(w):
+    def residual(w, contact=True):
         s1 = new_state(w)
-        return dynamic_residual(loaded, inert, s1.R, s1.p, s1.v, s1.vd)
+        return dynamic_residual(loaded, inert, s1.R, s1.p, s1.v, s1.vd, contact=contact)
 
-    def newton_residual(w):
+    def newton_residual(w, contact=True):
         if not sliding:
-            return residual(w)
+            return residual(w, contact)
         s1 = new_state(w)
         C, _, mask = slide_maps(model, state.R, w)
-        r = dynamic_residual(loaded, inert, s1.R, s1.p, s1.v, s1.vd, masked=False)
+        r = dynamic_residual(loaded, inert, s1.R, s1.p, s1.v, s1.vd, masked=False,
+                             contact=contact)
         return jnp.einsum("nij,nj->ni", C, r) * mask
 
     def residual_and_matrix(w):
@@ -151,9 +148,6 @@ def step_functions(model, inert, rho_inf, state: State, h,
         return residual_and_iteration_matrix(loaded, inert, s1.R, s1.p, s1.v, s1.vd, w,
                                              beta_p, gamma_p, slide, tangent)
 
-    joints = bool(model.structure.joints)
-    touching = bool(model.structure.self_contact)
-    pair_dofs = border_sizes(model.structure)[0] if touching else 0
     displaced = jnp.asarray(tendon_control.displaced(model.structure), dtype=int)
 
     def pulled(mu):
@@ -171,13 +165,11 @@ def step_functions(model, inert, rho_inf, state: State, h,
             s1 = new_state(w)
             return (dynamic_residual(pulled(mu), inert, s1.R, s1.p, s1.v, s1.vd),
                     length_mismatch(w))
-        r = newton_residual(w)
-        if touching:    # the border's rows W U^T x - y = 0 hold exactly in every solve
-            return r, jnp.zeros(pair_dofs, r.dtype)
-        if not joints:
+        r = newton_residual(w, contact=False)
+        if not coupling.present(model.structure):
             return r, mu
         s1 = new_state(w)
-        return mechanisms.residual(loaded, s1.R, s1.p, mu, r)
+        return coupling.coupled_residual(loaded, s1.R, s1.p, mu, r)
 
     def system(w, mu):
         if displaced.size:   # the border: tendon forces per unit tension, length gradients
@@ -187,23 +179,14 @@ def step_functions(model, inert, rho_inf, state: State, h,
             B = jax.jacfwd(lambda t: dynamic_residual(pulled(t), inert, s1.R, s1.p, s1.v,
                                                       s1.vd))(mu)
             C = jax.jacrev(length_mismatch)(w) * model.structure.free_mask()
-            return mechanisms.Coupled(r, blocks, B, C, jnp.zeros((mu.size,) * 2, r.dtype),
+            return coupling.Coupled(r, blocks, B, C, jnp.zeros((mu.size,) * 2, r.dtype),
                                       length_mismatch(w))
         r, blocks = residual_and_matrix(w)
-        if touching:    # rod-rod contact: bordered with its cross blocks
-            s1 = new_state(w)
-            r, blocks, cpl = rod_pairs.system(loaded, s1.R, s1.p, r, blocks,
-                                              jax.vmap(lie.tangent_se3)(w))
-            return mechanisms.Coupled(r, blocks, cpl.B, cpl.C, cpl.D,
-                                      jnp.zeros(pair_dofs, r.dtype))
-        if not joints:
-            n = r.shape[0]
-            return mechanisms.Coupled(r, blocks, jnp.zeros((n, 6, 0), r.dtype),
-                                      jnp.zeros((0, n, 6), r.dtype), jnp.zeros((0, 0), r.dtype),
-                                      mu)
+        if not coupling.present(model.structure):
+            return coupling.couple(loaded, None, None, mu, r, blocks)
         s1 = new_state(w)
-        return mechanisms.couple(loaded, s1.R, s1.p, mu, r, blocks,
-                                 jax.vmap(lie.tangent_se3)(w))
+        return coupling.couple(loaded, s1.R, s1.p, mu, r, blocks,
+                               jax.vmap(lie.tangent_se3)(w))
 
     return StepFunctions(new_state, residual, newton_residual, residual_and_matrix,
                          system_residual, system, t1)

@@ -16,24 +16,25 @@ load), and here the load continuation, the implicit derivative and :func:`solve_
 """
 from __future__ import annotations
 
-from functools import partial
+import dataclasses
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 
-from .. import lie, mechanisms, rod_pairs, tendon_control
+from .. import coupling, lie, mechanisms, tendon_control
 from .._xla import jit
 from ..assembly import residual, residual_and_tangent
-from ..linalg import implicit_solve, implicit_solve_coupled
+from ..linalg import implicit_solve_coupled
 from ..loads import full_loads
 from ..model import Model
+from ..newton import RUNNING, implicit, step_norm, weighted_norm  # noqa: F401
 from ..status import Status, raise_if_failed
 # the package's names, re-exported (batched sweeps, the dynamics, results import them here)
 from . import branch
-from .newton import (RUNNING, NewtonState, newton_solve, no_tangent, update_frames,  # noqa: F401
+from .newton import (NewtonState, newton_solve, no_tangent, update_frames,  # noqa: F401
                      level_tolerance, load_scale, max_load_step, newton_outcome, newton_pass,
-                     newton_start, step_norm, weighted_norm)
+                     newton_start)
 from .settings import Equilibrium, StaticSettings, as_traced, settings_from_scene  # noqa: F401
 
 
@@ -186,60 +187,63 @@ def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
     return continuation_result(settings, c)
 
 
-@partial(jax.custom_jvp, nondiff_argnums=(0,))
-def _implicit(tangent: str, model: Model, converged, R, p, y, previous):
-    """Identity on a converged equilibrium (frames R, p and joint multipliers y); its
-    derivative is the IFT one (see module doc). Held dofs follow the start frames
-    ``model.R0, model.p0`` (a clamp holds its node there). Where the solve did not
-    converge the derivative is NaN: there is no equilibrium to differentiate, and a
-    finite number would be wrong. With quasi-static friction (``previous``: the frames of
-    the level before the last, else None) the derivative is that of the last level's
-    equilibrium with ``previous`` held fixed: the history of the earlier levels is not
-    differentiated (exact for stations sliding in a direction the parameters do not turn,
-    as the friction (F1) is then ``mu f_n`` whatever the slip's size; an approximation
-    for sticking stations)."""
-    return R, p, y
+@dataclasses.dataclass(frozen=True)
+class EquilibriumProblem:
+    """The static equilibrium as an implicit problem for :func:`simsoft_jax.newton.implicit`
+    (spec section 5): ``params = (model, converged, previous)``, ``solution = (R, p, y)``
+    (frames and joint multipliers), increments ``(dx (N,6), dy (M,))`` on the right of the
+    frames. Held dofs follow the start frames ``model.R0, model.p0`` (a clamp holds its
+    node there). With quasi-static friction (``previous``: the frames of the level before
+    the last, else None) the derivative is that of the last level's equilibrium with
+    ``previous`` held fixed: the history of the earlier levels is not differentiated
+    (exact for stations sliding in a direction the parameters do not turn, as the
+    friction (F1) is then ``mu f_n`` whatever the slip's size; an approximation for
+    sticking stations). ``tangent``: the tangent path of the solve."""
+    tangent: str
 
+    def prescribed(self, params, solution):
+        """An increment whose derivative in the model is the held dofs' motion (zero on
+        the free dofs): translations ``R^T dp0``, rotations ``vee(R^T dR0)`` (its value
+        is not used)."""
+        model = params[0]
+        R, _, y = solution
+        held = 1.0 - model.structure.free_mask()
+        A = jnp.einsum("nji,njk->nik", R, model.R0)
+        rot = 0.5 * jnp.stack([A[:, 2, 1] - A[:, 1, 2], A[:, 0, 2] - A[:, 2, 0],
+                               A[:, 1, 0] - A[:, 0, 1]], axis=1)
+        moved = jnp.concatenate([jnp.einsum("nji,nj->ni", R, model.p0), rot], axis=1)
+        return held * moved, jnp.zeros_like(y)
 
-@_implicit.defjvp
-def _implicit_jvp(tangent, primals, tangents):
-    model, converged, R, p, y, previous = primals
-    dmodel = tangents[0]
-    held = 1.0 - model.structure.free_mask()
-    # body-frame motion of the held dofs: translations R^T dp0, rotations vee(R^T dR0)
-    dA = jnp.einsum("nji,njk->nik", R, dmodel.R0)
-    moved = held * jnp.concatenate([jnp.einsum("nji,nj->ni", R, dmodel.p0),
-                                    0.5 * jnp.stack([dA[:, 2, 1] - dA[:, 1, 2],
-                                                     dA[:, 0, 2] - dA[:, 2, 0],
-                                                     dA[:, 1, 0] - dA[:, 0, 1]], axis=1)], axis=1)
+    def residual(self, params, solution, delta):
+        model, _, previous = params
+        R, p, y = solution
+        Rx, px = update_frames(R, p, delta[0])
+        return coupling.coupled_residual(model, Rx, px, y + delta[1],
+                                         residual(model, Rx, px, 1.0, previous))
 
-    def perturbed(m, x):
-        Rx, px = update_frames(R, p, x)
-        r = residual(m, Rx, px, 1.0, previous)
-        if m.structure.self_contact:
-            r = r + rod_pairs.residual(m, Rx, px)
-        return mechanisms.residual(m, Rx, px, y, r) if m.structure.joints else (r, y)
+    def linear_solve(self, params, solution, rhs):
+        model, _, previous = params
+        R, p, y = solution
+        system = coupling.couple(model, R, p, y,
+                                 *residual_and_tangent(model, R, p, 1.0, self.tangent,
+                                                       previous))
+        x, z = implicit_solve_coupled(system.blocks, system.B, system.C, system.D, *rhs,
+                                      model.structure.identity_nodes())
+        return coupling.split(model.structure, x, z)
 
-    _, (dr, dr_z) = jax.jvp(perturbed, (model, jnp.zeros_like(moved)), (dmodel, moved))
-    r, blocks = residual_and_tangent(model, R, p, 1.0, tangent, previous)
-    identity = model.structure.identity_nodes()
-    if model.structure.joints:
-        system = mechanisms.couple(model, R, p, y, r, blocks)
-        x, z = implicit_solve_coupled(system.blocks, system.B, system.C, system.D, -dr,
-                                      -dr_z, identity)
-        x, dy = mechanisms.split(model.structure, x, z)
-    elif model.structure.self_contact:
-        r, blocks, cpl = rod_pairs.system(model, R, p, r, blocks)
-        x, _ = implicit_solve_coupled(blocks, *cpl, -dr, jnp.zeros(cpl.D.shape[0]), identity)
-        dy = jnp.zeros_like(y)
-    else:
-        x, dy = implicit_solve(blocks, -dr, identity), jnp.zeros_like(y)
-    nan_if_failed = jnp.where(converged, 1.0, jnp.nan)
-    dxi = jnp.where(held > 0, moved, x) * nan_if_failed
-    # d/dt [R exp(t dxi)] at t = 0: (R skew(dxi_w), R dxi_u)
-    dR = jnp.einsum("nij,njk->nik", R, jax.vmap(lie.skew)(dxi[:, 3:]))
-    dp = jnp.einsum("nij,nj->ni", R, dxi[:, :3])
-    return (R, p, y), (dR, dp, dy * nan_if_failed)
+    def merge(self, params, free, moved):
+        held = 1.0 - params[0].structure.free_mask()
+        return jnp.where(held > 0, moved[0], free[0]), free[1]
+
+    def push(self, params, solution, delta):
+        """d/dt [R exp(t dxi)] at t = 0: ``(R skew(dxi_w), R dxi_u)``, and dy."""
+        R, p, y = solution
+        dxi, dy = delta
+        return (jnp.einsum("nij,njk->nik", R, jax.vmap(lie.skew)(dxi[:, 3:])),
+                jnp.einsum("nij,nj->ni", R, dxi[:, :3]), dy)
+
+    def valid(self, params):
+        return params[1]
 
 
 def equilibrium(model: Model, settings: StaticSettings, continuation=None,
@@ -259,13 +263,11 @@ def equilibrium(model: Model, settings: StaticSettings, continuation=None,
         tension = m.tendon_tension if m.structure.tendon_names else None
         eq = eq._replace(previous=eq.previous if m.structure.has_friction else None,
                          tangent=eq.tangent if keep_tangent else None)
-        if eq.multipliers is None:       # no joints
-            R, p, _ = _implicit(st.tangent, m, eq.converged, eq.R, eq.p, jnp.zeros(0),
-                                eq.previous)
-            return eq._replace(R=R, p=p, tendon_tension=tension)
-        R, p, y = _implicit(st.tangent, m, eq.converged, eq.R, eq.p, eq.multipliers,
-                            eq.previous)
-        return eq._replace(R=R, p=p, multipliers=y, tendon_tension=tension)
+        y = jnp.zeros(0) if eq.multipliers is None else eq.multipliers   # None: no joints
+        R, p, y = implicit(EquilibriumProblem(st.tangent), (m, eq.converged, eq.previous),
+                           (eq.R, eq.p, y))
+        return eq._replace(R=R, p=p, multipliers=None if eq.multipliers is None else y,
+                           tendon_tension=tension)
 
     if not any(model.structure.tendon_displaced):
         return solve(model, settings)

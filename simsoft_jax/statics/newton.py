@@ -1,6 +1,7 @@
-"""One static Newton solve at a load level (:mod:`simsoft_jax.statics`): residual,
-tangent and step per pass with a natural-level divergence guard and backtracking, the
-norms its tests use, and the load scale of the tolerance."""
+"""The static policy of the Newton core (:mod:`simsoft_jax.newton`): one Newton solve at
+a load level of the continuation (:mod:`simsoft_jax.statics`), a fresh tangent at every
+iterate with a natural-level divergence guard and backtracking, and the load scale of the
+tolerance."""
 from __future__ import annotations
 
 from typing import NamedTuple
@@ -8,31 +9,15 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .. import lie, mechanisms, rod_pairs
+from .. import coupling, lie
 from ..assembly import residual_and_tangent
 from ..inertia import line_density
-from ..linalg import block_solve, factorize_coupled, solve_coupled
 from ..model import Model
+from ..newton import (RUNNING, capped, coupled_step, factorize, iterate, ladder, residual_norm,
+                      step_norm, step_size, weighted_norm)
 from ..status import Status
 from ..terms import registry
 from .settings import StaticSettings
-
-
-def weighted_norm(model, r):
-    """Unit-consistent norm: forces in N, moments divided by ``char_length`` (spec 4.7.9)."""
-    return jnp.sqrt(jnp.sum(r[:, :3] ** 2) + jnp.sum((r[:, 3:] / model.char_length) ** 2))
-
-
-def step_norm(model, dx):
-    """Largest nodal increment: translation / char_length and rotation (rad)."""
-    trans = jnp.linalg.norm(dx[:, :3], axis=1) / model.char_length
-    rot = jnp.linalg.norm(dx[:, 3:], axis=1)
-    return jnp.max(jnp.maximum(trans, rot))
-
-
-def _step_size(model, dx):
-    """Weighted 2-norm of a Newton step: translations / char_length, rotations in rad."""
-    return jnp.sqrt(jnp.sum((dx[:, :3] / model.char_length) ** 2) + jnp.sum(dx[:, 3:] ** 2))
 
 
 def load_scale(model: Model):
@@ -99,9 +84,6 @@ class NewtonState(NamedTuple):
     tangent: tuple
 
 
-RUNNING = -1
-
-
 def level_tolerance(model: Model, settings: StaticSettings):
     """The tolerance of the intermediate load levels (see :class:`StaticSettings`)."""
     if model.structure.has_friction:
@@ -124,22 +106,12 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState
     ``previous``: the frames (R, p) of the last converged level (the reference of the
     quasi-static friction)."""
     tol = jnp.where(lam < 1.0, level_tolerance(model, settings), settings.tolerance) * ref
-    identity = model.structure.identity_nodes()
-    r, blocks = residual_and_tangent(model, c.R, c.p, lam, settings.tangent, previous)
-    tangent = blocks   # the chains' tangent, kept before a border replaces ``blocks``
-    if model.structure.joints:    # rods, bodies and joints: the bordered system
-        res, dx, dy = _mechanism_step(model, ref, c.R, c.p, c.y, r, blocks)
-    elif model.structure.self_contact:   # rod-rod contact: the bordered system
-        r, blocks, cpl = rod_pairs.system(model, c.R, c.p, r, blocks)
-        dx, _ = solve_coupled(factorize_coupled(blocks, *cpl, identity), -r,
-                             jnp.zeros(cpl.D.shape[0]))
-        res, dy = weighted_norm(model, r), c.dy
-    else:
-        res, dx, dy = weighted_norm(model, r), -block_solve(blocks, r, identity), c.dy
-    rot = jnp.max(jnp.linalg.norm(dx[:, 3:], axis=1))
-    cap = jnp.minimum(1.0, settings.max_rotation_step / jnp.maximum(rot, 1e-300))
-    dx, dy = dx * cap, dy * cap
-    size = _step_size(model, dx)
+    r, tangent = residual_and_tangent(model, c.R, c.p, lam, settings.tangent, previous)
+    system = coupling.couple(model, c.R, c.p, c.y, r, tangent)
+    res = residual_norm(model, system, ref)
+    dx, dy = capped(settings.max_rotation_step,
+                    *coupled_step(model, factorize(model, system), system.r, system.r_z))
+    size = step_size(model, dx)
     finite = jnp.isfinite(res) & jnp.isfinite(size)
     exhausted = c.backtracks >= settings.line_search_steps
     accept = finite & ((size < settings.max_step_growth * c.size_base) | exhausted)
@@ -162,12 +134,10 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState
     # a non-finite trial from a base with no finite step (the first evaluation, or
     # after line_search_steps halvings) cannot be backtracked: the solve fails here
     nonfinite = ~finite & (exhausted | ~jnp.isfinite(c.size_base))
-    status = jnp.where(converged | stalled, Status.CONVERGED, RUNNING)
-    status = jnp.where(nonfinite, Status.NONFINITE, status)
-    status = jnp.where((status == RUNNING) & (iterations > settings.max_iterations),
-                       Status.MAX_ITERATIONS, status)
-    status = jnp.where((status == RUNNING) & ~jnp.all(jnp.isfinite(trial_p)),
-                       Status.NONFINITE, status)
+    status = ladder(converged | stalled, (
+        (nonfinite, Status.NONFINITE),
+        (iterations > settings.max_iterations, Status.MAX_ITERATIONS),
+        (~jnp.all(jnp.isfinite(trial_p)), Status.NONFINITE)))
     done = status != RUNNING
     return NewtonState(
         R=jnp.where(done, c.R, trial_R), p=jnp.where(done, c.p, trial_p),
@@ -203,20 +173,6 @@ def newton_outcome(c: NewtonState):
             c.tangent)
 
 
-def _mechanism_step(model: Model, ref, R, p, y, r, blocks):
-    """Residual norm and Newton step ``(dx (N,6), dy (M,))`` of the bordered system of rods,
-    bodies and joints (:mod:`simsoft_jax.mechanisms`). The norm adds the bodies' force
-    residuals and the joints' gaps (/ char_length) and rotations times the load scale
-    ``ref``, so a converged solve holds its joints to ``tolerance`` of the length."""
-    system = mechanisms.couple(model, R, p, y, r, blocks)
-    x, z = solve_coupled(factorize_coupled(system.blocks, system.B, system.C, system.D,
-                                          model.structure.identity_nodes()),
-                         -system.r, -system.r_z)
-    forces, gaps = mechanisms.violation_norm(model, system.r_z)
-    res = jnp.sqrt(weighted_norm(model, system.r) ** 2 + forces ** 2 + (ref * gaps) ** 2)
-    return (res,) + mechanisms.split(model.structure, x, z)
-
-
 def newton_solve(model: Model, settings: StaticSettings, R, p, y, lam, ref, previous=None):
     """Newton iterations at load level ``lam`` from (R, p) (spec S71) with damping.
 
@@ -232,7 +188,6 @@ def newton_solve(model: Model, settings: StaticSettings, R, p, y, lam, ref, prev
     norm, status code, tangent blocks at (R, p)). ``previous``: as in
     :func:`newton_pass`.
     """
-    c = jax.lax.while_loop(lambda c: c.status == RUNNING,
-                           lambda c: newton_pass(model, settings, lam, ref, c, previous),
-                           newton_start(R, p, y))
+    c = iterate(lambda c: newton_pass(model, settings, lam, ref, c, previous),
+                newton_start(R, p, y))
     return newton_outcome(c)
