@@ -20,6 +20,7 @@ import jax
 import jax.numpy as jnp
 
 from . import coupling
+from ._xla import jit
 from .linalg import factorize_coupled, solve_coupled
 from .status import Status
 
@@ -121,7 +122,15 @@ def implicit(problem, params, solution):
 @implicit.defjvp
 def _implicit_jvp(problem, primals, tangents):
     params, solution = primals
-    dparams = tangents[0]
+    return solution, implicit_tangent(problem, params, solution, tangents[0])
+
+
+@jit(static_argnums=0)
+def implicit_tangent(problem, params, solution, dparams):
+    """The tangent of :func:`implicit`'s solution for the parameter tangent ``dparams``: one
+    compiled program of its own (linear in ``dparams``), so that the gradient of a solve
+    called outside ``jit`` reuses the solve's compiled program and compiles only this
+    (and its transpose) rather than the solve again."""
     _, moved = jax.jvp(lambda q: problem.prescribed(q, solution), (params,), (dparams,))
     _, dr = jax.jvp(lambda q, d: problem.residual(q, solution, d),
                     (params, jax.tree_util.tree_map(jnp.zeros_like, moved)), (dparams, moved))
@@ -129,4 +138,4 @@ def _implicit_jvp(problem, primals, tangents):
     delta = problem.merge(params, free, moved)
     scale = jnp.where(problem.valid(params), 1.0, jnp.nan)
     delta = jax.tree_util.tree_map(lambda d: d * scale, delta)
-    return solution, problem.push(params, solution, delta)
+    return problem.push(params, solution, delta)

@@ -279,6 +279,26 @@ def equilibrium(model: Model, settings: StaticSettings, continuation=None,
                        status=jnp.where(failed, Status.MAX_ITERATIONS, eq.status))
 
 
+def transformed(tree) -> bool:
+    """Whether some array of ``tree`` is traced (under ``jit``, ``grad``, ``vmap``...)."""
+    return any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(tree))
+
+
+def differentiable(eq: Equilibrium, model: Model, tangent: str) -> Equilibrium:
+    """``eq``, solved for ``model`` (without displacement-controlled tendons), with the
+    implicit derivative in ``model`` attached outside the compiled solve
+    (:func:`simsoft_jax.newton.implicit`): ``jax.grad`` or ``jax.jvp`` of a function
+    calling :func:`solve_static` outside ``jit`` runs the solve's compiled program as it is
+    and compiles only the small tangent program (``tangent``: its tangent path)."""
+    model = full_loads(model)
+    y = jnp.zeros(0) if eq.multipliers is None else eq.multipliers
+    R, p, y = implicit(EquilibriumProblem(tangent), (model, eq.converged, eq.previous),
+                       (eq.R, eq.p, y))
+    return eq._replace(R=R, p=p, multipliers=None if eq.multipliers is None else y,
+                       tendon_tension=model.tendon_tension if model.structure.tendon_names
+                       else None)
+
+
 @jit
 def static_program(model: Model, settings: StaticSettings) -> Equilibrium:
     return equilibrium(model, settings)
@@ -296,7 +316,12 @@ def solve_static(model: Model, settings: StaticSettings = StaticSettings(),
     ``throw=True`` raises :class:`~simsoft_jax.status.SolveError` instead of returning a
     failed solve.
     """
-    eq = static_program(model, as_traced(settings))
+    traced = as_traced(settings)
+    if any(model.structure.tendon_displaced) or not transformed(model):
+        eq = static_program(model, traced)   # (the tendons' derivative is in the program)
+    else:   # the program's answer, its derivative attached by a program of its own
+        eq = differentiable(static_program(jax.lax.stop_gradient(model), traced), model,
+                            traced.tangent)
     if throw:
         raise_if_failed("static", eq.converged, eq.status, eq.cause, eq.load_level,
                         eq.residual_norm)
