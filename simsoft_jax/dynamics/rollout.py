@@ -14,6 +14,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+from jax.ad_checkpoint import checkpoint_name
 
 from .. import element, lie, mechanisms
 from .._xla import jit
@@ -178,6 +179,12 @@ def _same_inertia(a: Model, b: Model) -> bool:
     return a.inertia is b.inertia and a.d0 is b.d0 and a.length is b.length
 
 
+# The differentiable rollout's steps are checkpointed (memory O(saved states)), keeping
+# each step's Newton solve (its accepted sub-steps, solved without derivative): the
+# backward pass recomputes only the steps' implicit derivatives, not their solves.
+SAVE_ADVANCE = jax.checkpoint_policies.save_only_these_names("advance")
+
+
 class _StepCarry(NamedTuple):
     state: State
     failed: jax.Array
@@ -214,6 +221,7 @@ def stepper(model: Model, inert, settings: DynamicSettings, differentiable: bool
             ine = inert if _same_inertia(m, model) else element_inertia(m)
         adv = advance(*jax.lax.stop_gradient((m, ine, settings, c.state, c.memory)),
                       keep_substeps=differentiable)
+        adv = checkpoint_name(adv, "advance")
         new, its, subs, memory = adv.state, adv.iterations, adv.substeps, adv.memory
         status, cause, residual = adv.status, adv.cause, adv.residual
         if differentiable:   # the same sub-steps again, each with its implicit derivative
@@ -247,7 +255,8 @@ def rollout_program(model: Model, settings: DynamicSettings, state: State | None
     step = stepper(model, inert, settings, differentiable, control, control_params)
 
     def save_block(c, _):
-        c, (its, subs) = jax.lax.scan(jax.checkpoint(step) if differentiable else step, c,
+        c, (its, subs) = jax.lax.scan(jax.checkpoint(step, policy=SAVE_ADVANCE)
+                                      if differentiable else step, c,
                                       None, length=settings.save_every)
         st = c.state
         return c, (st.t, st.R, st.p, st.v, its, subs, c.memory.multipliers)
