@@ -103,7 +103,8 @@ def _global_node(path: Path, line: int, structure, scene_name: str, rod: str, no
 
 
 def static_targets(path, scenes: Sequence) -> list[StaticTarget]:
-    """One :class:`~simsoft_jax.calibration.StaticTarget` per scene that has measurements.
+    """One :class:`~simsoft_jax.calibration.StaticTarget` per scene that has measurements,
+    with the scene's ``[solver]`` settings (which the fit and :func:`evaluate` honour).
 
     scenes: validated static :class:`~simsoft_jax.scene.Scene` objects with unique names.
     Raises ``ValueError`` for rows naming unknown scenes, rods or nodes.
@@ -125,7 +126,8 @@ def static_targets(path, scenes: Sequence) -> list[StaticTarget]:
         nodes = np.array([n for n, _ in rows])
         mask = np.array([[v is not None for v in xyz] for _, xyz in rows])
         values = np.array([[0.0 if v is None else v for v in xyz] for _, xyz in rows])
-        targets.append(StaticTarget(models[name], nodes, values, mask))
+        targets.append(StaticTarget(models[name], nodes, values, mask,
+                                    settings_from_scene(by_name[name].solver)))
     return targets
 
 
