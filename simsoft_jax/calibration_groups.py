@@ -411,7 +411,8 @@ def fit_groups(obs: ObservationSet, groups: Sequence[Group], max_steps: int = 50
     the file gives them, else the residual variance); a group the data cannot determine
     is named in ``unidentified`` with a ``message``. The steps change the log scales
     only along the combinations the data (and priors) determine
-    (:func:`simsoft_jax.calibration_report.determined`, re-evaluated at every step); the
+    (:func:`simsoft_jax.calibration_report.determined`, re-evaluated at every step; for
+    rows without a std, only the combinations no prediction depends on are left out); the
     others stay where they stand (the start, the scenes' values, unless the data
     determined them earlier on the way), so that an unidentifiable group does not run off:
     such a fit ends with outcome ``UNIDENTIFIED`` and a message naming the combinations
@@ -446,11 +447,13 @@ def fit_groups(obs: ObservationSet, groups: Sequence[Group], max_steps: int = 50
     n = len(obs.value)
     given_std = bool(np.any(obs.std != 1.0))
 
-    def noise(r):
-        return 1.0 if given_std else float(r[:n] @ r[:n]) / max(n - P, 1)
+    # without the rows' std the noise is known only at the end: steps then leave out only
+    # the combinations no prediction depends on (a misfit far from the optimum would
+    # otherwise make every group look loose)
+    step_noise = 1.0 if given_std else 0.0
 
     def subspace(U, R, Js):
-        return np.stack([determined(j, noise(rr))[0] for rr, j in zip(R, Js)])
+        return np.stack([determined(j, step_noise)[0] for j in Js])
 
     x0 = np.clip(np.zeros(P), lo, hi)
     sol = least_squares(evaluate, x0[None], lo[None], hi[None],
@@ -461,11 +464,11 @@ def fit_groups(obs: ObservationSet, groups: Sequence[Group], max_steps: int = 50
     if outcome == Outcome.SOLVE_FAILED:
         raise RuntimeError(failure[0])
     x, r, J = sol.u[0], sol.r[0], sol.J[0]
-    variance = noise(r)
+    variance = 1.0 if given_std else float(r[:n] @ r[:n]) / max(n - P, 1)
     info = information(J, variance, [g.label for g in groups])
     settled = outcome in (Outcome.REACHED, Outcome.STATIONARY)
     status = outcome.name
-    frozen = determined(J, variance)[1]
+    frozen = determined(J, step_noise)[1]
     message = info.message
     if frozen.shape[1]:
         status = "UNIDENTIFIED"
