@@ -35,8 +35,8 @@ With ``subspace`` (Levenberg-Marquardt), a callable ``(U, r, J) -> (B,P,P)`` ort
 projectors ``Pi`` re-evaluated at every iterate, the steps are confined to the range of
 ``Pi`` (e.g. the parameter combinations the data determine): the model uses ``J Pi``, the
 step is projected by ``Pi`` and the stopping tests use the gradient ``Pi J^T r``; the
-other combinations keep their start values (a truncated Gauss-Newton method, Hansen 1998,
-"Rank-Deficient and Discrete Ill-Posed Problems", sec. 3.2).
+other combinations do not move while they stay outside it (a truncated Gauss-Newton
+method, Hansen 1998, "Rank-Deficient and Discrete Ill-Posed Problems", sec. 3.2).
 """
 from __future__ import annotations
 
