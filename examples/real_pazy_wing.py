@@ -10,7 +10,8 @@ Model, from the files only:
   the data's unequal station spacing (13 of 38.25 mm, then 33.47 and 19.13 mm; segment
   ``length``) so that properties and masses sit where the data put them; its
   4x4 stiffness ``[extension, twist, flap, edgewise]`` (K11..K44 with couplings) becomes
-  the 6x6 section matrix by :func:`simsoft_jax.sections.beam4_stiffness` (shear-rigid data:
+  the 6x6 section matrix by :func:`simsoft_jax.section_tables.read_stiffness_table` (as
+  :func:`simsoft_jax.sections.beam4_stiffness` maps it; shear-rigid data:
   its default GA = 100 EA keeps shear strains negligible, below 1e-8 here; the tip
   deflection moves by 4e-8 of itself from GA = 1e4 EA, while the static solves take 4x
   fewer Newton iterations). Frames: world = the Nastran frame of the
@@ -18,7 +19,8 @@ Model, from the files only:
   (towards the leading edge), local z = +Z, so flap bending is ``kappa_y`` and a positive
   rotation about local x lifts the leading edge (nose up, the data's positive twist).
 * the 16 lumped masses of ``beam_inertia_skin*.csv`` as ``[[masses]]`` at the nodes with
-  their centre-of-gravity offsets (their inertias do not enter statics); the rod's own
+  their centre-of-gravity offsets (:func:`simsoft_jax.section_tables.read_mass_table`,
+  frame map ``("-y", "x", "z")``) (their inertias do not enter statics); the rod's own
   rhoA is negligible (1e-9 kg/m);
 * gravity 9.80665 m/s^2; the tip mass hangs at the mid-chord (6 % chord = 6 mm aft of the
   axis, chord 0.1 m) for the bending test, and 0.04 m (skin off) / 0.08 m (skin on) behind
@@ -49,13 +51,13 @@ import numpy as np
 from _common import parse_args, write_summary
 
 import simsoft_jax as sj
-from simsoft_jax import sections
 from simsoft_jax.data_files import data_path
 from simsoft_jax import observation_splits as splits
 from simsoft_jax.calibration_groups import groups_from_dict, parse_groups, predict
 from simsoft_jax.calibration_report import metrics
 from simsoft_jax.cli import main as cli
 from simsoft_jax.measurements import observation_set
+from simsoft_jax.section_tables import read_mass_table, read_stiffness_table
 
 DATA = data_path("real", "pazy_wing_technion")
 G = 9.80665
@@ -72,26 +74,16 @@ def read_csv(name):
 
 def wing_scene(skin: int, test: str, mass: float) -> dict:
     """Scene dictionary of the wing with ``mass`` kg hung for ``test``."""
-    stiffness = read_csv(f"beam_stiffness_skin{skin}.csv")
-    inertia = read_csv(f"beam_inertia_skin{skin}.csv")
+    # the 4x4 data's strain axes are the section's (identity frame map)
+    stiffness = read_stiffness_table(DATA / f"beam_stiffness_skin{skin}.csv")
+    # Nastran (X aft, Y span, Z up) -> section frame (x = Y, y = -X, z = Z)
+    masses = read_mass_table(DATA / f"beam_inertia_skin{skin}.csv", frame=("-y", "x", "z"))
     axis = read_csv("beam_reference_axis_nodes.csv")
     stations = np.array([float(r["y_m_spanwise"]) for r in axis])
     span = float(stations[-1])
-    segments = []
-    for row, length in zip(stiffness, np.diff(stations)):
-        k = {key: float(row[key]) for key in row if key.startswith("K")}
-        K4 = np.array([[k["K11"], k["K12"], k["K13"], k["K14"]],
-                       [k["K12"], k["K22"], k["K23"], k["K24"]],
-                       [k["K13"], k["K23"], k["K33"], k["K34"]],
-                       [k["K14"], k["K24"], k["K34"], k["K44"]]])
-        K = sections.beam4_stiffness(K4)
-        segments.append({"elements": 1, "length": float(length),
-                         "stiffness": {"matrix": K.tolist()},
-                         "inertia": {"rhoA": 1e-9, "rhoJ": 0.0, "rhoIy": 0.0, "rhoIz": 0.0}})
-    masses = [{"rod": "wing", "node": i, "mass": float(r["mass"]),
-               # Nastran (X aft, Y span, Z up) -> section frame (x = Y, y = -X, z = Z)
-               "offset": [float(r["cgy"]), -float(r["cgx"]), float(r["cgz"])]}
-              for i, r in enumerate(inertia)]
+    segments = [{"elements": 1, "length": float(length), "stiffness": {"matrix": K.tolist()},
+                 "inertia": {"rhoA": 1e-9, "rhoJ": 0.0, "rhoIy": 0.0, "rhoIz": 0.0}}
+                for K, length in zip(stiffness, np.diff(stations))]
     aft = (0.5 - AXIS) * CHORD if test == "bending" else (
         (1.0 - AXIS) * CHORD + BEHIND_TE[skin])
     return {
@@ -101,7 +93,7 @@ def wing_scene(skin: int, test: str, mass: float) -> dict:
         "rods": [{"name": "wing", "geometry": {"kind": "straight", "length": span},
                   "base": {"rotation": [0.0, 0.0, np.pi / 2]}, "segments": segments}],
         "constraints": [{"kind": "clamp", "rod": "wing", "node": 0}],
-        "masses": masses,
+        "masses": masses.scene_masses("wing"),
         "loads": [{"kind": "force", "rod": "wing", "node": -1, "vector": [0.0, 0.0, -G * mass],
                    "offset": [0.0, -aft, 0.0]}],
     }

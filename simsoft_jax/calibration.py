@@ -207,11 +207,14 @@ def _make_fit(names, model: Model, result) -> Fit:
 
 class StaticTarget(NamedTuple):
     """Measured positions of one static model: nodes (M,) global node indices;
-    positions (M, 3) world coordinates (m); mask (M, 3) True where measured."""
+    positions (M, 3) world coordinates (m); mask (M, 3) True where measured; settings:
+    the solver settings of its scene (its ``[solver]`` table,
+    :func:`simsoft_jax.statics.settings_from_scene`; None: the defaults)."""
     model: Model
     nodes: np.ndarray
     positions: np.ndarray
     mask: np.ndarray
+    settings: StaticSettings | None = None
 
 
 def _stack(trees):
@@ -219,15 +222,20 @@ def _stack(trees):
 
 
 def static_residual_fn(targets: Sequence[StaticTarget], names: Sequence[str],
-                       settings: StaticSettings = StaticSettings()):
+                       settings: StaticSettings | None = None):
     """``x -> (r, ok)``: simulated minus measured components (m), target by target.
 
-    Targets that share a model structure are solved in one vmapped call (one compile
-    per structure); measurement rows are padded within a group and masked out.
+    Each target is solved with its own ``settings`` (its scene's ``[solver]`` table;
+    the defaults when it has none), or with ``settings`` for all when given. Targets that
+    share a model structure and settings are solved in one vmapped call (one compile per
+    structure and integer settings); measurement rows are padded within a group and
+    masked out.
     """
     groups: dict = {}
     for t in targets:
-        groups.setdefault(t.model.structure, []).append(t)
+        own = settings if settings is not None else (
+            t.settings if t.settings is not None else StaticSettings())
+        groups.setdefault((t.model.structure, own), []).append(t)
     packed = []
     for members in groups.values():
         rows = max(len(t.nodes) for t in members)
@@ -237,10 +245,10 @@ def static_residual_fn(targets: Sequence[StaticTarget], names: Sequence[str],
         for i, t in enumerate(members):
             nodes[i, :len(t.nodes)], pos[i, :len(t.nodes)], mask[i, :len(t.nodes)] = (
                 t.nodes, t.positions, t.mask)
-        packed.append((_stack([t.model for t in members]), nodes, pos, mask))
+        packed.append((_stack([t.model for t in members]), nodes, pos, mask, own))
     # position of each target's measured components in the concatenated group vectors
     offsets, start = {}, 0
-    for (_, _, _, mask), members in zip(packed, groups.values()):
+    for (_, _, _, mask, _), members in zip(packed, groups.values()):
         for i, t in enumerate(members):
             offsets[id(t)] = start + i * mask[i].size
         start += mask.size
@@ -249,9 +257,9 @@ def static_residual_fn(targets: Sequence[StaticTarget], names: Sequence[str],
 
     def residual_fn(x):
         parts, ok = [], jnp.array(True)
-        for models, nodes, pos, _ in packed:
-            def one(model, idx):
-                eq = solve_static(apply_scales(model, names, x), settings)
+        for models, nodes, pos, _, own in packed:
+            def one(model, idx, own=own):
+                eq = solve_static(apply_scales(model, names, x), own)
                 return eq.p[idx], eq.converged
             p, conv = jax.vmap(one)(models, jnp.asarray(nodes))
             parts.append((p - pos).ravel())
@@ -261,10 +269,11 @@ def static_residual_fn(targets: Sequence[StaticTarget], names: Sequence[str],
 
 
 def evaluate(targets: Sequence[StaticTarget], params, scale=None,
-             settings: StaticSettings = StaticSettings()) -> np.ndarray:
+             settings: StaticSettings | None = None) -> np.ndarray:
     """Residuals (simulated minus measured, m) of ``targets`` with the parameters
     multiplied by ``scale`` (P,) (default 1: the scenes' values) — e.g. held-out error
-    before and after a fit (``scale=fit.scale``)."""
+    before and after a fit (``scale=fit.scale``). Each target is solved with its own
+    settings unless ``settings`` is given (:func:`static_residual_fn`)."""
     names = check_parameters(params)
     x = np.zeros(len(names)) if scale is None else np.log(np.asarray(scale, float))
     r, ok = jit(static_residual_fn(targets, names, settings))(jnp.asarray(x))
@@ -276,11 +285,13 @@ def evaluate(targets: Sequence[StaticTarget], params, scale=None,
 def fit_static(targets: Sequence[StaticTarget], params, x0=None, optimizer=None,
                max_steps: int = 100, gradient_tolerance: float = 1e-6,
                noise_std: float | None = None,
-               settings: StaticSettings = StaticSettings()) -> Fit:
+               settings: StaticSettings | None = None) -> Fit:
     """Fit ``params`` (names in :data:`PARAMETERS`) to measured static positions.
 
     x0: initial log scales (default 0: start from the scenes' values). The residual
-    vector lists the measured components target by target, row by row (x, y, z).
+    vector lists the measured components target by target, row by row (x, y, z). Each
+    target is solved with its own settings (its scene's ``[solver]`` table, see
+    :func:`simsoft_jax.measurements.static_targets`) unless ``settings`` is given for all.
     """
     names = check_parameters(params)
     if not targets:

@@ -39,7 +39,7 @@ import numpy as np
 from . import lie
 from ._xla import jit
 from .calibration import PARAMETERS, scale_stiffness
-from .calibration_report import information
+from .calibration_report import determined, information
 from .least_squares import Outcome, least_squares
 from .measurements import ObservationSet
 from .statics import StaticSettings, as_traced, solve_static
@@ -312,6 +312,9 @@ def predict(obs: ObservationSet, groups: Sequence[Group], scale=None,
     return r * obs.std + obs.value
 
 
+EXACT = 1e-10   # every normalized residual below this: the data are reproduced (REACHED)
+
+
 class GroupFit(NamedTuple):
     """Fitted groups: scale (P,), std (P,) of the scale (inf for a group the data
     cannot identify), correlation (P,P) and covariance (P,P) of the log scales
@@ -319,8 +322,10 @@ class GroupFit(NamedTuple):
     max) of the fitted parameter over the group's elements in the first model},
     residuals (n,) of the data rows normalized by std, rms of the unnormalized
     residuals, loss_history (accepted steps, 0.5 |r|^2 with the prior rows), converged
-    (the projected gradient vanished), iterations, outcome (how the minimization ended,
-    a :class:`~simsoft_jax.least_squares.Outcome` name), unidentified (labels of the
+    (the minimization settled: the data reproduced or the projected gradient vanished),
+    iterations, outcome (how the minimization ended, a
+    :class:`~simsoft_jax.least_squares.Outcome` name, or ``UNIDENTIFIED`` when it left
+    combinations the data cannot determine where they stood), unidentified (labels of the
     groups the data cannot determine), message (why, "" if none), eigenvalues of the
     scaled information matrix, evaluations (solves of every scene, Jacobians included)."""
     groups: tuple
@@ -404,10 +409,18 @@ def fit_groups(obs: ObservationSet, groups: Sequence[Group], max_steps: int = 50
     by later fits and predictions of the same layout. Uncertainty and identifiability:
     :func:`simsoft_jax.calibration_report.information` (the rows' std as the noise when
     the file gives them, else the residual variance); a group the data cannot determine
-    is named in ``unidentified`` with a ``message``. The fit ends when the gradient
-    vanishes (``gradient_tolerance``) or when a Gauss-Newton step could lower the cost by
-    less than ``cost_tolerance`` of it. A solve that fails at the start
-    raises ``RuntimeError`` naming the scene; failed trial steps are rejected."""
+    is named in ``unidentified`` with a ``message``. The steps change the log scales
+    only along the combinations the data (and priors) determine
+    (:func:`simsoft_jax.calibration_report.determined`, re-evaluated at every step; for
+    rows without a std, only the combinations no prediction depends on are left out); the
+    others stay where they stand (the start, the scenes' values, unless the data
+    determined them earlier on the way), so that an unidentifiable group does not run off:
+    such a fit ends with outcome ``UNIDENTIFIED`` and a message naming the combinations
+    left undetermined. The fit ends when every normalized residual is below :data:`EXACT` (the
+    data reproduced), when the gradient vanishes (``gradient_tolerance``) or when a
+    Gauss-Newton step could lower the cost by less than ``cost_tolerance`` of it. A solve
+    that fails at the start raises ``RuntimeError`` naming the scene; failed trial steps
+    are rejected."""
     groups = tuple(groups)
     if not groups:
         raise ValueError("params: name at least one parameter")
@@ -431,20 +444,43 @@ def fit_groups(obs: ObservationSet, groups: Sequence[Group], max_steps: int = 50
             history.append(cost)
         return r[None], np.concatenate([J, A])[None], np.array([True])
 
+    n = len(obs.value)
+    given_std = bool(np.any(obs.std != 1.0))
+
+    # without the rows' std the noise is known only at the end: steps then leave out only
+    # the combinations no prediction depends on (a misfit far from the optimum would
+    # otherwise make every group look loose)
+    step_noise = 1.0 if given_std else 0.0
+
+    def subspace(U, R, Js):
+        return np.stack([determined(j, step_noise)[0] for j in Js])
+
     x0 = np.clip(np.zeros(P), lo, hi)
     sol = least_squares(evaluate, x0[None], lo[None], hi[None],
-                        lambda r: np.full(r.shape[0], np.inf), 0.0,
-                        "levenberg_marquardt", max_steps, gradient_tolerance, cost_tolerance)
+                        lambda r: np.max(np.abs(r), axis=1), EXACT,
+                        "levenberg_marquardt", max_steps, gradient_tolerance, cost_tolerance,
+                        subspace=subspace)
     outcome = Outcome(int(sol.outcome[0]))
     if outcome == Outcome.SOLVE_FAILED:
         raise RuntimeError(failure[0])
     x, r, J = sol.u[0], sol.r[0], sol.J[0]
-    n = len(obs.value)
-    given_std = bool(np.any(obs.std != 1.0))
     variance = 1.0 if given_std else float(r[:n] @ r[:n]) / max(n - P, 1)
     info = information(J, variance, [g.label for g in groups])
+    settled = outcome in (Outcome.REACHED, Outcome.STATIONARY)
+    status = outcome.name
+    frozen = determined(J, step_noise)[1]
     message = info.message
-    if info.unidentified and outcome not in (Outcome.REACHED, Outcome.STATIONARY):
+    if frozen.shape[1]:
+        status = "UNIDENTIFIED"
+        combos = "; ".join("(" + ", ".join(f"{v:+.2f} {g.label}" for v, g in zip(col, groups)
+                                           if abs(v) > 0.1) + ")" for col in frozen.T)
+        message = ((message + "; ") if message else "") + (
+            f"the fit moves the log scales only along the combinations the data determine "
+            f"and left {combos} where it stood when the data stopped determining it "
+            f"(scales {np.round(np.exp(x), 4).tolist()}): "
+            + (f"it settled in {int(sol.steps[0])} steps" if settled else
+               f"{outcome.name} after {int(sol.steps[0])} steps"))
+    elif info.unidentified and not settled:
         message += (f"; the minimization did not settle ({outcome.name} after "
                     f"{int(sol.steps[0])} steps) because of them: the cost keeps falling "
                     f"slowly as they run off (scales {np.round(np.exp(x), 4).tolist()})")
@@ -460,8 +496,8 @@ def fit_groups(obs: ObservationSet, groups: Sequence[Group], max_steps: int = 50
         ranges[g.label] = (float(vals.min()), float(vals.max()))
     return GroupFit(groups, scale, scale * info.std_log, info.covariance, info.correlation,
                     ranges, r[:n], float(np.sqrt(np.mean((r[:n] * obs.std) ** 2))),
-                    np.asarray(history), outcome in (Outcome.REACHED, Outcome.STATIONARY),
-                    int(sol.steps[0]), outcome.name, info.unidentified, message,
+                    np.asarray(history), settled,
+                    int(sol.steps[0]), status, info.unidentified, message,
                     info.eigenvalues, int(sol.evaluations[0]))
 
 

@@ -79,6 +79,22 @@ def information(J, variance: float, labels: Sequence[str]) -> Information:
                        tuple(labels[j] for j in np.flatnonzero(lost | loose)), "; ".join(parts))
 
 
+def determined(J, variance: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(Pi (P,P), V (P,k))``: the orthogonal projector onto the combinations of the log
+    scales the data determine, and the k undetermined directions (unit columns). From the
+    eigen-decomposition ``F = sum_k lam_k v_k v_k^T`` of the information ``F = J^T J``
+    (log scales are dimensionless, so F needs no scaling): a direction is undetermined
+    when its standard deviation ``sqrt(variance / lam_k)`` exceeds :data:`LOOSE` or
+    ``lam_k`` is below :data:`SINGULAR` times the largest (the criteria of
+    :func:`information`, per direction). The fit confines its steps to ``Pi``
+    (:func:`simsoft_jax.least_squares.least_squares`, ``subspace``)."""
+    J = np.nan_to_num(np.asarray(J, float))
+    w, V = np.linalg.eigh(J.T @ J)
+    loose = (w < SINGULAR * max(w.max(), 1e-300)) | (variance > LOOSE ** 2 * np.maximum(w, 1e-300))
+    keep = V[:, ~loose]
+    return keep @ keep.T, V[:, loose]
+
+
 def metrics(obs, predicted) -> dict:
     """Errors of ``predicted`` (n,) against the rows of ``obs`` per quantity:
     ``{quantity: {"n", "rms", "max_abs", "mean", "rms_over_std"}}`` in the quantity's unit

@@ -19,6 +19,8 @@
   rows (``--split N``: every N-th row; ``--hold-out-by tip_mass [--hold-out
   upper|lower|alternate] [--within test]``: by a column) predicted after the fit with
   their errors per quantity, and groups the data cannot identify named with the reason;
+  ``--table-map pazy-tip-sweep|MAP.toml [--where skin=0]`` reads a data set's own table
+  (e.g. the Pazy ``tip_mass_sweep_measured.csv``) as observations;
 * ``predict --fitted fitted.json --scenes S... --measurements held_out.csv``: per-row
   predictions and errors with a fitted result;
 * ``bench [--quick] [--only NAMES] [--out DIR]``: the benchmark suite of the source
@@ -234,7 +236,8 @@ def _calibrate(args) -> int:
     from .calibration import fit_static
     from .measurements import is_observation_file, static_targets
     from .scene import load_scene
-    if args.groups or args.split or args.hold_out_by or (Path(args.measurements).is_file()
+    if args.groups or args.split or args.hold_out_by or args.table_map or (
+            Path(args.measurements).is_file()
                                      and is_observation_file(args.measurements)):
         return _calibrate_observations(args)
     try:
@@ -255,10 +258,22 @@ def _calibrate(args) -> int:
 
 
 def _observations(args, path):
-    """Scenes and the observation set of ``path`` (CLI helper)."""
-    from .measurements import observation_set
+    """The observation set of ``path`` against the scenes (CLI helper): an observation
+    file, or a data set's table read through ``--table-map`` and ``--where``."""
+    from .measurements import load_table_map, observation_set
     from .scene import load_scene
-    return observation_set(path, [load_scene(p) for p in args.scenes])
+    table_map = None
+    if args.table_map:
+        where = {}
+        for item in args.where or ():
+            column, sep, values = item.partition("=")
+            if not sep or not column.strip() or not values.strip():
+                raise ValueError(f"where: expected COLUMN=VALUE[,VALUE...], got {item!r}")
+            where[column.strip()] = tuple(v.strip() for v in values.split(","))
+        table_map = load_table_map(args.table_map, where)
+    elif args.where:
+        raise ValueError("where: filters rows read through --table-map; give --table-map")
+    return observation_set(path, [load_scene(p) for p in args.scenes], table_map)
 
 
 def _print_rows(obs, predicted, title):
@@ -358,6 +373,7 @@ def _add_calibration_commands(sub):
                        help="CSV: scene,rod,node,x,y,z (positions) or the observation "
                        "layout scene,rod,node,[offset_x,offset_y,offset_z,]quantity,value"
                        "[,std,reference]")
+    _add_table_options(p_cal)
     p_cal.add_argument("--params", help="e.g. EIy,EIz,GJ (or E,G); with an observation "
                        "file also groups EIy@0-5, EIy@wing:0-5, bounds EIy@0-5=0.5:2")
     p_cal.add_argument("--groups", help="TOML file of [[groups]] (param, rod, elements, "
@@ -381,8 +397,23 @@ def _add_calibration_commands(sub):
     p_pre.add_argument("--fitted", required=True, help="JSON written by calibrate -o "
                        "(observation layout)")
     p_pre.add_argument("--scenes", nargs="+", required=True, help="static scene files")
-    p_pre.add_argument("--measurements", required=True, help="observation CSV")
+    p_pre.add_argument("--measurements", required=True, help="observation CSV (or a data "
+                       "set's table with --table-map)")
+    _add_table_options(p_pre)
     p_pre.set_defaults(func=_predict)
+
+
+def _add_table_options(parser):
+    """``--table-map`` and ``--where``: read a data set's own table as observations."""
+    parser.add_argument("--table-map", help="read --measurements as a data set's own table "
+                        "through a map: a TOML file (scene/reference templates, rod, node, "
+                        "[[quantities]] column, quantity, scale, std, offset; see "
+                        "simsoft_jax.measurements.load_table_map) or a shipped one: "
+                        "pazy-tip-sweep (tip_mass_sweep_measured.csv of the Pazy wing)")
+    parser.add_argument("--where", action="append", metavar="COLUMN=VALUE[,VALUE]",
+                        help="with --table-map: keep only the table rows whose COLUMN holds "
+                        "one of the values (repeatable, e.g. --where skin=0 --where "
+                        "test=bending)")
 
 
 def _bench(bench_args: list) -> int:

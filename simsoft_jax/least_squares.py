@@ -30,6 +30,13 @@ cost (Moré 1978's relative-reduction test: the cost is as low as the residuals'
 round-off lets one tell); as ``STALLED`` when no step lowers the cost any more (``lam``
 above 1e12, or a line search that halved 30 times); ``MAX_STEPS`` after ``max_steps``
 iterations; ``SOLVE_FAILED`` when the residual cannot be evaluated at the start point.
+
+With ``subspace`` (Levenberg-Marquardt), a callable ``(U, r, J) -> (B,P,P)`` orthogonal
+projectors ``Pi`` re-evaluated at every iterate, the steps are confined to the range of
+``Pi`` (e.g. the parameter combinations the data determine): the model uses ``J Pi``, the
+step is projected by ``Pi`` and the stopping tests use the gradient ``Pi J^T r``; the
+other combinations do not move while they stay outside it (a truncated Gauss-Newton
+method, Hansen 1998, "Rank-Deficient and Discrete Ill-Posed Problems", sec. 3.2).
 """
 from __future__ import annotations
 
@@ -105,19 +112,24 @@ def _gauss_newton_decrease(J, r, pinned):
 
 def least_squares(evaluate: Callable, u0, lower, upper, error: Callable, tolerance: float,
                   method: str = "levenberg_marquardt", max_steps: int = 50,
-                  gradient_tolerance: float = 1e-6, cost_tolerance: float = 0.0) -> Solution:
+                  gradient_tolerance: float = 1e-6, cost_tolerance: float = 0.0,
+                  subspace: Callable | None = None) -> Solution:
     """Solve the batch of bounded least-squares problems described in the module doc.
 
     evaluate: ``U (B,P) -> (r (B,n), J (B,n,P), ok (B,))``. u0, lower, upper: (B,P) (the
     start is projected onto the box). error: ``r (B,n) -> (B,)`` the measure compared with
-    ``tolerance``. Returns a :class:`Solution`.
+    ``tolerance``. subspace: optional ``(U, r, J) -> (B,P,P)`` projectors confining the
+    steps (Levenberg-Marquardt only; module doc). Returns a :class:`Solution`.
     """
     if method not in ("levenberg_marquardt", "lbfgs"):
         raise ValueError(f"method: unknown method {method!r} "
                          "(choose 'levenberg_marquardt' or 'lbfgs')")
+    if subspace is not None and method != "levenberg_marquardt":
+        raise ValueError("subspace: confined steps need method 'levenberg_marquardt'")
     U = np.clip(np.asarray(u0, float), lower, upper)
     B = U.shape[0]
     r, J, ok = (np.asarray(a) for a in evaluate(U))
+    Pi = np.broadcast_to(np.eye(U.shape[1]), (B, U.shape[1], U.shape[1]))
     outcome = np.where(ok, Outcome.RUNNING, Outcome.SOLVE_FAILED).astype(int)
     cost = 0.5 * np.sum(r * r, axis=1)
     steps, evals, failed = np.zeros(B, int), np.ones(B, int), np.zeros(B, int)
@@ -126,7 +138,7 @@ def least_squares(evaluate: Callable, u0, lower, upper, error: Callable, toleran
 
     def classify():
         """Gradient and projected-gradient norm at U; ends reached and stationary problems."""
-        g = np.einsum("bni,bn->bi", np.nan_to_num(J), np.nan_to_num(r))
+        g = np.einsum("bij,bnj,bn->bi", Pi, np.nan_to_num(J), np.nan_to_num(r))
         gp, _ = projected_gradient(U, g, lower, upper)
         gnorm = np.linalg.norm(gp, axis=1)
         running = outcome == Outcome.RUNNING
@@ -136,20 +148,26 @@ def least_squares(evaluate: Callable, u0, lower, upper, error: Callable, toleran
             Outcome.STATIONARY
         return g, gnorm
 
+    def confine():
+        """The step projectors at U (identity without ``subspace``)."""
+        return Pi if subspace is None or not ok.any() else np.asarray(subspace(U, r, J))
+
+    Pi = confine()
     g, gnorm = classify()
     while np.any(outcome == Outcome.RUNNING):
         running = outcome == Outcome.RUNNING
         if lbfgs is None:
             _, pinned = projected_gradient(U, g, lower, upper)
+            Jc = np.einsum("bnj,bji->bni", np.nan_to_num(J), Pi)
             if cost_tolerance > 0.0:
-                flat = running & (_gauss_newton_decrease(np.nan_to_num(J), np.nan_to_num(r),
+                flat = running & (_gauss_newton_decrease(Jc, np.nan_to_num(r),
                                                          pinned) <= cost_tolerance * cost)
                 outcome[flat] = Outcome.STATIONARY
                 running &= ~flat
                 if not running.any():
                     break
-            trial = np.clip(U + _lm_step(np.nan_to_num(J), np.nan_to_num(r), lam, pinned),
-                            lower, upper)
+            step = np.einsum("bij,bj->bi", Pi, _lm_step(Jc, np.nan_to_num(r), lam, pinned))
+            trial = np.clip(U + step, lower, upper)
             trial = np.where(running[:, None], trial, U)
             tr, tJ, tok = (np.asarray(a) for a in evaluate(trial))
             tcost = 0.5 * np.sum(tr * tr, axis=1)
@@ -167,6 +185,8 @@ def least_squares(evaluate: Callable, u0, lower, upper, error: Callable, toleran
         r = np.where(accept[:, None], tr, r)
         J = np.where(accept[:, None, None], tJ, J)
         cost = np.where(accept, tcost, cost)
+        if subspace is not None and accept.any():
+            Pi = np.where(accept[:, None, None], confine(), Pi)
         g, gnorm = classify()
         if lbfgs is not None:
             lbfgs.advance(g, U, accept)

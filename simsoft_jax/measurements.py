@@ -103,7 +103,8 @@ def _global_node(path: Path, line: int, structure, scene_name: str, rod: str, no
 
 
 def static_targets(path, scenes: Sequence) -> list[StaticTarget]:
-    """One :class:`~simsoft_jax.calibration.StaticTarget` per scene that has measurements.
+    """One :class:`~simsoft_jax.calibration.StaticTarget` per scene that has measurements,
+    with the scene's ``[solver]`` settings (which the fit and :func:`evaluate` honour).
 
     scenes: validated static :class:`~simsoft_jax.scene.Scene` objects with unique names.
     Raises ``ValueError`` for rows naming unknown scenes, rods or nodes.
@@ -125,7 +126,8 @@ def static_targets(path, scenes: Sequence) -> list[StaticTarget]:
         nodes = np.array([n for n, _ in rows])
         mask = np.array([[v is not None for v in xyz] for _, xyz in rows])
         values = np.array([[0.0 if v is None else v for v in xyz] for _, xyz in rows])
-        targets.append(StaticTarget(models[name], nodes, values, mask))
+        targets.append(StaticTarget(models[name], nodes, values, mask,
+                                    settings_from_scene(by_name[name].solver)))
     return targets
 
 
@@ -291,9 +293,11 @@ class ObservationSet(NamedTuple):
             return np.array(cells)
 
 
-def observation_set(path, scenes: Sequence) -> ObservationSet:
-    """Resolve the rows of ``path`` (:func:`read_observations`) against validated static
-    ``scenes`` (unique names); errors name the file, line and column."""
+def observation_set(path, scenes: Sequence, table_map: "TableMap | None" = None) -> ObservationSet:
+    """Resolve the rows of ``path`` against validated static ``scenes`` (unique names):
+    an observation file (:func:`read_observations`), or with ``table_map`` a data set's
+    own table read through it (:func:`read_table`); errors name the file, line and
+    column."""
     path = Path(path)
     by_name = _static_scenes_by_name(scenes, "calibration")
     names, models, index = [], [], {}
@@ -311,7 +315,7 @@ def observation_set(path, scenes: Sequence) -> ObservationSet:
         return _global_node(path, line, models[m].structure, name, rod, node,
                             f"rod {rod!r} of scene {name!r}")
 
-    rows = read_observations(path)
+    rows = read_observations(path) if table_map is None else read_table(path, table_map)
     cols = {k: [] for k in ("model", "node", "ref_model", "ref_node", "kind", "component")}
     for row in rows:
         m = model_of(row.scene, row.line, "scene")
@@ -334,3 +338,165 @@ def observation_set(path, scenes: Sequence) -> ObservationSet:
                           value=np.array([r.value for r in rows], float),
                           std=np.array([r.std for r in rows], float),
                           rows=tuple(rows), path=str(path))
+
+
+# ----------------------------------------------------------------------------- native tables
+class QuantityColumn(NamedTuple):
+    """One measured column of a data set's table: column (its header), quantity (a
+    :data:`QUANTITIES` name), scale (the factor to the quantity's SI unit, e.g.
+    pi/180 for degrees, 1e-3 for mm), std (the measurement std in the SI unit; 1 =
+    unweighted), offset (3,) the observed point in the node's section frame (m)."""
+    column: str
+    quantity: str
+    scale: float = 1.0
+    std: float = 1.0
+    offset: tuple = (0.0, 0.0, 0.0)
+
+
+class TableMap(NamedTuple):
+    """How the rows of a data set's own table become observations (:func:`read_table`):
+    scene and reference (None: relative to the stress-free start) are templates filled
+    from the row's cells (``"{test}_skin{skin}_{tip_mass_kg:.1f}kg"``: a cell is inserted
+    as written, or as a number when a format spec follows the colon); rod and node (in
+    the scene, negative from the end) the observed section; quantities the measured
+    columns (:class:`QuantityColumn`); where ``{column: (values...)}`` keeps only the rows
+    whose cell equals one of the values (numbers compare as numbers)."""
+    scene: str
+    rod: str
+    node: int
+    quantities: tuple
+    reference: str | None = None
+    where: dict = {}
+
+
+class _Cell(str):
+    """A table cell for a template: as written, or ``float(cell)`` under a format spec."""
+
+    def __format__(self, spec):
+        return format(float(self), spec) if spec else str(self)
+
+
+def _same(cell: str, value) -> bool:
+    try:
+        return float(cell) == float(value)
+    except ValueError:
+        return cell == str(value).strip()
+
+
+def _fill(path: Path, line: int, template: str, cells: dict, what: str) -> str:
+    try:
+        return template.format_map(cells)
+    except KeyError as err:
+        _fail(path, line, str(err.args[0]), f"{what} template {template!r} names a column the "
+              f"table does not have (columns: {sorted(cells)})")
+    except ValueError:
+        _fail(path, line, what, f"template {template!r}: a cell is not a number for its "
+              "format spec")
+
+
+def read_table(path, table_map: TableMap) -> list[Observation]:
+    """Observations (:class:`Observation`, as :func:`read_observations` gives them) from a
+    data set's own CSV table (e.g. ``tip_mass_sweep_measured.csv`` of the Pazy wing), one
+    per row and measured column of ``table_map``: value = cell x scale, std, offset,
+    rod, node from the map, scene and reference from its templates, every cell of the
+    row kept in ``columns`` (for splits, e.g. ``--hold-out-by tip_mass_kg``). An empty
+    cell is "not measured" (skipped); so is a row whose scene is its own reference (its
+    relative values vanish by definition). Errors name the file, the line and the
+    column."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"measurements: no such file {str(path)!r}")
+    for q in table_map.quantities:
+        if q.quantity not in QUANTITIES:
+            raise ValueError(f"table map: unknown quantity {q.quantity!r} for column "
+                             f"{q.column!r} (choose from {', '.join(QUANTITIES)})")
+        if not (np.isfinite(q.scale) and np.isfinite(q.std) and q.std > 0):
+            raise ValueError(f"table map: column {q.column!r} needs a finite scale and std > 0")
+    with path.open(newline="") as handle:
+        reader = csv.DictReader(handle)
+        header = reader.fieldnames or []
+        needed = [q.column for q in table_map.quantities] + list(table_map.where)
+        missing = [c for c in needed if c not in header]
+        if missing:
+            raise ValueError(f"measurements: {path.name} lacks column(s) {missing} (the table "
+                             f"map reads them; columns: {header})")
+        rows = []
+        for line, row in enumerate(reader, start=2):
+            cells = {k: _Cell((v or "").strip()) for k, v in row.items() if k is not None}
+            if not all(any(_same(cells[c], v) for v in values)
+                       for c, values in table_map.where.items()):
+                continue
+            scene = _fill(path, line, table_map.scene, cells, "scene")
+            reference = (None if table_map.reference is None else
+                         _fill(path, line, table_map.reference, cells, "reference"))
+            if scene == reference:
+                continue
+            for q in table_map.quantities:
+                value = _number(path, line, row, q.column, default=None)
+                if value is not None:
+                    rows.append(Observation(line, scene, table_map.rod, table_map.node,
+                                            tuple(map(float, q.offset)), q.quantity,
+                                            value * q.scale, float(q.std), reference,
+                                            {k: str(v) for k, v in cells.items()}))
+    if not rows:
+        raise ValueError(f"measurements: {path.name} gives no measured value through the "
+                         f"table map (filter {dict(table_map.where)})")
+    return rows
+
+
+TABLE_MAPS = {"pazy-tip-sweep": ("real", "pazy_wing_technion", "tip_mass_sweep_map.toml")}
+
+
+def load_table_map(source, where: dict | None = None) -> TableMap:
+    """A :class:`TableMap` from a TOML file, or a shipped one by name
+    (:data:`TABLE_MAPS`: ``"pazy-tip-sweep"``); ``where`` adds row filters. The file::
+
+        scene = "{test}_skin{skin}_{tip_mass_kg:.1f}kg"   # required template
+        reference = "{test}_skin{skin}_0.0kg"             # optional template
+        rod = "wing"                                       # required
+        node = -1                                          # required
+        [where]                                            # optional filters
+        test = ["bending"]
+        [[quantities]]                                     # one per measured column
+        column = "tip_uz_m"
+        quantity = "uz"
+        scale = 1.0                    # optional: to SI (m, rad)
+        std = 0.0005                   # optional (SI)
+        offset = [0.0, -0.006, 0.0]    # optional (m, section frame)
+
+    Errors name the file and the key."""
+    import tomllib
+    from .data_files import data_path
+    path = data_path(*TABLE_MAPS[source]) if source in TABLE_MAPS else Path(source)
+    try:
+        data = tomllib.loads(path.read_text())
+    except (OSError, ValueError) as err:
+        raise ValueError(f"table map: cannot read {source} ({err}; shipped maps: "
+                         f"{', '.join(TABLE_MAPS)})") from None
+    where_from = f"table map: {path.name}"
+    unknown = set(data) - {"scene", "reference", "rod", "node", "where", "quantities"}
+    if unknown:
+        raise ValueError(f"{where_from}: unknown key {sorted(unknown)[0]!r} (allowed: scene, "
+                         "reference, rod, node, where, quantities)")
+    for key, kind in (("scene", str), ("rod", str), ("node", int)):
+        if not isinstance(data.get(key), kind):
+            raise ValueError(f"{where_from}: {key} must be a {kind.__name__}")
+    items = data.get("quantities")
+    if not isinstance(items, list) or not items:
+        raise ValueError(f"{where_from}: give at least one [[quantities]] (column, quantity)")
+    quantities = []
+    for i, item in enumerate(items):
+        extra = set(item) - set(QuantityColumn._fields)
+        if extra or not {"column", "quantity"} <= set(item):
+            raise ValueError(f"{where_from}: quantities[{i}] needs column and quantity "
+                             f"(optional scale, std, offset); got {sorted(item)}")
+        offset = item.get("offset", [0.0, 0.0, 0.0])
+        if not isinstance(offset, list) or len(offset) != 3:
+            raise ValueError(f"{where_from}: quantities[{i}].offset must be [x, y, z]")
+        quantities.append(QuantityColumn(item["column"], item["quantity"],
+                                         float(item.get("scale", 1.0)),
+                                         float(item.get("std", 1.0)), tuple(offset)))
+    filters = {k: tuple(v) if isinstance(v, (list, tuple)) else (v,)
+               for k, v in {**data.get("where", {}), **(where or {})}.items()}
+    return TableMap(data["scene"], data["rod"], data["node"], tuple(quantities),
+                    data.get("reference"), filters)

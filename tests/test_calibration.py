@@ -223,3 +223,37 @@ def test_measurements_map_rod_nodes_and_masks(tmp_path):
     np.testing.assert_array_equal(target.mask, [[False, True, True], [True, True, True]])
     with pytest.raises(ValueError, match="scenes: two scenes are named 'flap'"):
         static_targets(tmp_path / "m.csv", [_scene("flap", [0, 0, -1.0])] * 2)
+
+
+def test_fit_static_honours_each_scenes_solver_settings(tmp_path):
+    """fit_static and evaluate solve each target with its scene's ``[solver]`` table
+    (static_targets carries it): a loose tolerance gives the tip of a solve with that
+    tolerance, not of the defaults; a scene allowed one Newton iteration in one load step
+    cannot reach its equilibrium and the fit says so, while settings given explicitly
+    override every scene's and recover the generating scale."""
+    from simsoft_jax.statics import StaticSettings, settings_from_scene
+    from test_calibration_groups import strip
+    loose = strip("loose", 0.6, 0.0, solver={"kind": "static", "tolerance": 1e-2,
+                                             "load_steps": 1, "max_load_step": 1.0})
+    (tmp_path / "zero.csv").write_text("scene,rod,node,x,y,z\nloose,wing,-1,0,0,0\n")
+    targets = static_targets(tmp_path / "zero.csv", [loose])
+    assert targets[0].settings == settings_from_scene(loose.solver)
+    model = sj.build_model(loose)
+    own = np.asarray(sj.solve_static(model, settings_from_scene(loose.solver)).p[-1])
+    default = np.asarray(sj.solve_static(model, StaticSettings()).p[-1])
+    assert np.abs(own - default).max() > 1e-7          # the settings make a difference
+    np.testing.assert_allclose(cal.evaluate(targets, "EIy"), own, rtol=0, atol=1e-13)
+
+    hard = strip("hard", 0.8, 0.0, solver={"kind": "static", "tolerance": 1e-12,
+                                           "max_iterations": 1, "load_steps": 1,
+                                           "max_load_step": 1.0})
+    tight = StaticSettings(tolerance=1e-12)
+    p = sj.solve_static(cal.apply_scales(sj.build_model(hard), ("EIy",), jnp.log(jnp.array([1.2]))),
+                        tight).p[-1]
+    (tmp_path / "tip.csv").write_text("scene,rod,node,x,y,z\nhard,wing,-1,"
+                                      + ",".join(repr(float(v)) for v in p) + "\n")
+    targets = static_targets(tmp_path / "tip.csv", [hard])
+    with pytest.raises(RuntimeError, match="did not converge"):
+        cal.fit_static(targets, "EIy")
+    fit = cal.fit_static(targets, "EIy", settings=tight)
+    np.testing.assert_allclose(fit.scale, [1.2], rtol=1e-6)

@@ -134,6 +134,28 @@ def test_two_perfectly_correlated_groups_are_reported_unidentifiable(tmp_path):
     np.testing.assert_allclose(tied.scale, [1.3, 1.3], rtol=1e-3)
 
 
+def test_unidentifiable_pair_ends_in_few_steps_with_its_status(tmp_path):
+    """Two groups one deflection cannot tell apart: the fit moves only along the
+    combination the data determine (the information matrix's range) and leaves the other
+    where it stands (the start), so it settles in a few steps, fits the row exactly and says so
+    (outcome UNIDENTIFIED, the combination kept in the message); the scales stay near the
+    generating 1.3 instead of running off along the undetermined direction."""
+    scenes = [strip("m0.5", 0.5, BEHIND, elements=4)]
+    path = tmp_path / "one.csv"
+    path.write_text(HEADER + "m0.5,wing,-1,0,0,0,uz,0,0.0005,,0.5\n")
+    obs = observation_set(path, scenes)
+    obs = obs._replace(value=predict(obs, parse_groups("EIy"), [1.3]))
+    halves = parse_groups("EIy@0-1,EIy@2-3")
+    fit = fit_groups(obs, halves, max_steps=100)
+    assert fit.outcome == "UNIDENTIFIED" and fit.converged and fit.iterations <= 8
+    assert "left (" in fit.message and "where it stood" in fit.message
+    assert "settled in" in fit.message and "EIy@2-3" in fit.message
+    assert abs(fit.residuals[0]) < 1e-6                 # normalized by the 0.5 mm std
+    np.testing.assert_allclose(predict(obs, halves, fit.scale), obs.value, rtol=1e-8)
+    assert np.all((fit.scale > 1.0) & (fit.scale < 1.6))
+    assert fit.to_dict()["outcome"] == "UNIDENTIFIED"
+
+
 def test_group_prior_pulls_the_scale_and_adds_its_information(tmp_path):
     """A prior row ``(x - log s0) / sigma``; with a prior far tighter than the data the
     fitted scale is the prior's, and the prior rows are what :func:`prior_rows` writes."""
