@@ -112,8 +112,8 @@ def implicit(problem, params, solution):
     solution, delta)`` -> F at the solution moved by the increment ``delta``;
     ``linear_solve(params, solution, rhs)`` -> ``J^-1 rhs`` on the free unknowns (inside
     ``lax.custom_linear_solve`` so that reverse mode transposes it with the same
-    factors); ``merge(params, free, moved)`` -> one increment from the free part and the
-    prescribed part; ``push(params, solution, delta)`` -> the solution's tangent for the
+    factors); ``merge(params, solution, free, moved)`` -> one increment from the free part
+    and the prescribed part; ``push(params, solution, delta)`` -> the solution's tangent for the
     increment ``delta``; ``valid(params)`` -> whether the solve converged (the derivative
     of a failed solve is NaN: there is no solution to differentiate)."""
     return solution
@@ -135,7 +135,7 @@ def implicit_tangent(problem, params, solution, dparams):
     _, dr = jax.jvp(lambda q, d: problem.residual(q, solution, d),
                     (params, jax.tree_util.tree_map(jnp.zeros_like, moved)), (dparams, moved))
     free = problem.linear_solve(params, solution, jax.tree_util.tree_map(jnp.negative, dr))
-    delta = problem.merge(params, free, moved)
+    delta = problem.merge(params, solution, free, moved)
     scale = jnp.where(problem.valid(params), 1.0, jnp.nan)
     delta = jax.tree_util.tree_map(lambda d: d * scale, delta)
     return problem.push(params, solution, delta)

@@ -96,7 +96,7 @@ class TensionProblem:
         jac = jax.jacfwd(lambda d: self.residual(params, t, d))(jnp.zeros_like(t))
         return jnp.linalg.solve(jac, rhs)
 
-    def merge(self, params, free, moved):
+    def merge(self, params, solution, free, moved):
         return free
 
     def push(self, params, t, delta):

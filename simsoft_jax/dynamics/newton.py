@@ -183,10 +183,24 @@ class StepProblem:
     their prescribed motion (clamps, drives)."""
 
     def prescribed(self, params, solution):
+        """The held dofs' prescribed increments (clamps, drives); a sliding drive's node
+        moves by its prescribed increment plus its solved slide ``ds`` (held fixed) along
+        the slide column ``b`` of :func:`~simsoft_jax.drives.slide_maps`, whose
+        derivative ``d w_h + db ds`` is its prescribed motion (the change of slide
+        ``d ds`` is solved)."""
         model, _, _, state, h = params
         held = 1.0 - model.structure.free_mask()
-        return (held * held_increments(model, state, state.t + h),
-                jnp.zeros_like(solution[1]))
+        w_h = held_increments(model, state, state.t + h)
+        if model.structure.slide_drives:
+            b = slide_maps(model, state.R, w_h)[1][:, :3, 0]     # (N,3); used at slides
+            slide = jax.lax.stop_gradient(
+                jnp.sum((solution[0][:, :3] - w_h[:, :3]) * b, axis=1)
+                / jnp.maximum(jnp.sum(b * b, axis=1), 1e-300))
+            sliding = jnp.zeros(b.shape[0]).at[
+                jnp.asarray(model.structure.drive_nodes, int)[
+                    jnp.asarray(model.structure.slide_drives, int)]].set(1.0)
+            w_h = w_h.at[:, :3].add((sliding * slide)[:, None] * b)
+        return held * w_h, jnp.zeros_like(solution[1])
 
     def residual(self, params, solution, delta):
         model, inert, settings, state, h = params
@@ -201,9 +215,19 @@ class StepProblem:
                                       model.structure.identity_nodes())
         return coupling.split(model.structure, x, z)
 
-    def merge(self, params, free, moved):
-        mask = params[0].structure.free_mask()
-        return jnp.where(mask > 0, free[0], moved[0]), free[1]
+    def merge(self, params, solution, free, moved):
+        """The free dofs' increments, the held ones' prescribed motion, and for a sliding
+        drive its prescribed motion plus the solved change of slide along its direction
+        (the slide unknown is the node's first dof, mapped back as in
+        :func:`newton_step`)."""
+        model, state = params[0], params[3]
+        mask = model.structure.free_mask()
+        dw = jnp.where(mask > 0, free[0], moved[0])
+        if model.structure.slide_drives:
+            _, B, slide_mask = slide_maps(model, state.R, solution[0])
+            slid = jnp.where((mask == 0) & (slide_mask > 0), free[0], 0.0)
+            dw = dw + jnp.einsum("nij,nj->ni", B, slid)
+        return dw, free[1]
 
     def push(self, params, solution, delta):
         return delta

@@ -242,9 +242,6 @@ def stepper(model: Model, inert, settings: DynamicSettings, differentiable: bool
 def rollout_program(model: Model, settings: DynamicSettings, state: State | None,
               control_params=None, control_memory=None, differentiable: bool = False,
               control=None) -> Trajectory:
-    if differentiable and model.structure.slide_drives:
-        raise ValueError("constraints: differentiable=True does not support drives with "
-                         "slides_along yet (the implicit-function derivative would be wrong)")
     inert = element_inertia(model)
     if state is None:
         state = initial_state(model, 0.0, inert)

@@ -231,7 +231,7 @@ class EquilibriumProblem:
                                       model.structure.identity_nodes())
         return coupling.split(model.structure, x, z)
 
-    def merge(self, params, free, moved):
+    def merge(self, params, solution, free, moved):
         held = 1.0 - params[0].structure.free_mask()
         return jnp.where(held > 0, moved[0], free[0]), free[1]
 
