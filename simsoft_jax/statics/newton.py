@@ -11,10 +11,12 @@ import jax.numpy as jnp
 from .. import lie, mechanisms, rod_pairs
 from ..assembly import residual_and_tangent
 from ..inertia import line_density
-from ..linalg import block_solve, factorize_coupled, solve_coupled
+from ..linalg import (factorize, factorize_coupled, pivots_positive_definite, solve_coupled,
+                      solve_factored)
 from ..model import Model
 from ..status import Status
 from ..terms import registry
+from .branch import symmetric_at_equilibrium
 from .settings import StaticSettings
 
 
@@ -80,7 +82,10 @@ class NewtonState(NamedTuple):
     evaluated trial (res), rejected trials in a row (backtracks), accepted Newton steps
     (iterations), and the status: -1 running, else a :class:`Status` code. y, base_y,
     dy: the joint multipliers like R, p and dx (empty without joints). tangent: the
-    chains' tangent blocks evaluated at the last pass's trial (at (R, p) once done)."""
+    chains' tangent blocks evaluated at the last pass's trial (at (R, p) once done).
+    positive: that tangent is positive definite, read from the pivots of its
+    factorization when the pass converged and :func:`.branch.symmetric_at_equilibrium`
+    holds (False otherwise)."""
     R: jax.Array
     p: jax.Array
     base_R: jax.Array
@@ -97,6 +102,7 @@ class NewtonState(NamedTuple):
     iterations: jax.Array
     status: jax.Array
     tangent: tuple
+    positive: jax.Array
 
 
 RUNNING = -1
@@ -135,7 +141,8 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState
                              jnp.zeros(cpl.D.shape[0]))
         res, dy = weighted_norm(model, r), c.dy
     else:
-        res, dx, dy = weighted_norm(model, r), -block_solve(blocks, r, identity), c.dy
+        factors = factorize(blocks, identity)
+        res, dx, dy = weighted_norm(model, r), -solve_factored(factors, r), c.dy
     rot = jnp.max(jnp.linalg.norm(dx[:, 3:], axis=1))
     cap = jnp.minimum(1.0, settings.max_rotation_step / jnp.maximum(rot, 1e-300))
     dx, dy = dx * cap, dy * cap
@@ -169,6 +176,11 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState
     status = jnp.where((status == RUNNING) & ~jnp.all(jnp.isfinite(trial_p)),
                        Status.NONFINITE, status)
     done = status != RUNNING
+    positive = jnp.array(False)
+    if symmetric_at_equilibrium(model):   # the stability watch's test, at the converged pass
+        from ..batched import any_lane    # batched imports this package
+        positive = jax.lax.cond(any_lane(status == Status.CONVERGED),
+                                lambda: pivots_positive_definite(factors), lambda: positive)
     return NewtonState(
         R=jnp.where(done, c.R, trial_R), p=jnp.where(done, c.p, trial_p),
         base_R=base_R, base_p=base_p, dx=dx, y=jnp.where(done, c.y, trial_y),
@@ -176,7 +188,7 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState
         size_base=jnp.where(accept, size, c.size_base), res=res,
         res_base=jnp.where(accept, res, c.res_base),
         backtracks=jnp.where(accept, 0, c.backtracks + 1),
-        iterations=iterations, status=status, tangent=tangent)
+        iterations=iterations, status=status, tangent=tangent, positive=positive)
 
 
 def newton_start(R, p, y) -> NewtonState:
@@ -187,7 +199,7 @@ def newton_start(R, p, y) -> NewtonState:
                         y=y, base_y=y, dy=jnp.zeros_like(y),
                         step=jnp.array(1.0), size_base=inf, res=inf, res_base=inf,
                         backtracks=zero, iterations=zero, status=jnp.array(RUNNING),
-                        tangent=no_tangent(p))
+                        tangent=no_tangent(p), positive=jnp.array(False))
 
 
 def no_tangent(p):
@@ -197,10 +209,11 @@ def no_tangent(p):
 
 
 def newton_outcome(c: NewtonState):
-    """(R, p, y, Newton steps, residual norm, status code, tangent blocks at (R, p)) of a
-    finished Newton carry."""
+    """(R, p, y, Newton steps, residual norm, status code, tangent blocks at (R, p),
+    whether they are positive definite as read by the last pass) of a finished Newton
+    carry."""
     return (c.R, c.p, c.y, jnp.maximum(c.iterations - 1, 0), c.res, c.status,
-            c.tangent)
+            c.tangent, c.positive)
 
 
 def _mechanism_step(model: Model, ref, R, p, y, r, blocks):
@@ -229,7 +242,8 @@ def newton_solve(model: Model, settings: StaticSettings, R, p, y, lam, ref, prev
     rejected trial halves the step from the base. Every loop pass either accepts (counted
     against ``max_iterations``) or backtracks (at most ``line_search_steps`` in a row), so
     the loop always ends (:func:`newton_pass`). Returns (R, p, y, Newton steps, residual
-    norm, status code, tangent blocks at (R, p)). ``previous``: as in
+    norm, status code, tangent blocks at (R, p), their positive definiteness as
+    :class:`NewtonState` says). ``previous``: as in
     :func:`newton_pass`.
     """
     c = jax.lax.while_loop(lambda c: c.status == RUNNING,
