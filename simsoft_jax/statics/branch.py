@@ -24,7 +24,9 @@ at an equilibrium is symmetric (the Hessian of the energy; its antisymmetric par
 linear in the residual, zero there), and whether it is positive definite is read from the
 pivots of the factorization the Newton solve did anyway at its converged pass
 (:func:`simsoft_jax.linalg.pivots_positive_definite`): two small Cholesky tests per
-level instead of a second factorization. Other loads (follower loads, pressure,
+level instead of a second factorization (Princeton rod: about 1 instead of 23 us per
+level; its static program 4936 -> 3770 StableHLO operations, 3611 unwatched, with the
+leaner gathers and series of the same change). Other loads (follower loads, pressure,
 tendons, contact and the other registered terms) keep the Cholesky test of the
 tangent's symmetric part (:func:`stable`). The critical mode is found, only after a
 loss, from one dense eigendecomposition for up to :data:`EIGH_LIMIT_NODES` nodes (the
