@@ -24,6 +24,7 @@ from __future__ import annotations
 import functools
 
 import jax
+import numpy as np
 
 _CANDIDATE = {"xla_cpu_use_fusion_emitters": False, "xla_cpu_multi_thread_eigen": False}
 _NO_LOOP_INVARIANT_MOTION = {"xla_disable_hlo_passes": "while-loop-invariant-code-motion"}
@@ -92,3 +93,14 @@ def jit(fun=None, loop_invariant_motion: bool = True, **kwargs):
     if fun is None:
         return lambda f: _Jitted(f, kwargs, loop_invariant_motion)
     return _Jitted(fun, kwargs, loop_invariant_motion)
+
+
+def take_rows(x, rows):
+    """``x[rows]`` for static, non-negative row indices ``rows`` (numpy integers, any
+    shape): a slice where they are consecutive, else a gather with unsigned indices.
+    ``x[rows]`` itself wraps negative indices, four more operations per gather traced
+    into the program (``jnp`` cannot know that static indices are non-negative)."""
+    rows = np.asarray(rows)
+    if rows.ndim == 1 and rows.size and np.array_equal(rows, rows[0] + np.arange(rows.size)):
+        return x[int(rows[0]):int(rows[0]) + rows.size]
+    return x[rows.astype(np.uint32)]

@@ -29,6 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import element, inertia, lie
+from ._xla import take_rows
 from .inertia import line_density
 from .model import Model
 from .terms import ElementData, element_state
@@ -264,8 +265,8 @@ def static_friction_and_tangent(model: Model, R, p, previous, tangent: bool = Tr
 
 def element_poses(model: Model, R, p):
     """Frames of the two nodes of every element: RA, pA, RB, pB (E,3,3)/(E,3)."""
-    a = jnp.asarray(model.structure.element_nodes)
-    return R[a], p[a], R[a + 1], p[a + 1]
+    a = np.asarray(model.structure.element_nodes)
+    return take_rows(R, a), take_rows(p, a), take_rows(R, a + 1), take_rows(p, a + 1)
 
 
 def _nodal_load(model: Model, lam):
@@ -283,8 +284,7 @@ def _placed(n_rows, rows, x):
         return jnp.pad(x, pad)
     source = np.full(n_rows, len(rows))
     source[rows] = np.arange(len(rows))
-    padded = jnp.concatenate([x, jnp.zeros((1,) + x.shape[1:], x.dtype)])
-    return padded[source]
+    return take_rows(jnp.concatenate([x, jnp.zeros((1,) + x.shape[1:], x.dtype)]), source)
 
 
 def assemble_vector(n_nodes, element_nodes, f_el):
@@ -444,7 +444,6 @@ def element_blocks(model: Model, lam, R, p, v=None, vd=None, inert=None,
     chambers, magnetic couples, fluid loads)."""
     s = model.structure
     dynamic = inert is not None
-    a = jnp.asarray(s.element_nodes)
     if dynamic:
         ve, vde = element_velocities(model, v, vd)
     else:
@@ -454,15 +453,16 @@ def element_blocks(model: Model, lam, R, p, v=None, vd=None, inert=None,
                 else element_data(model))
         return Blocks(*jax.vmap(term_tangents.element_tangents(s, lam, dynamic))(
             *element_poses(model, R, p), ve, vde, data))
-    d = jax.vmap(element.relative_twist)(R[a], p[a], R[a + 1], p[a + 1])
+    RA, pA, RB, pB = element_poses(model, R, p)
+    d = jax.vmap(element.relative_twist)(RA, pA, RB, pB)
     if dynamic:
         f, K, C, M = jax.vmap(_dynamic_kernel(model, lam))(
-            R[a], d, ve, vde, inert.maps, inert.masses, model.d0, model.length,
+            RA, d, ve, vde, inert.maps, inert.masses, model.d0, model.length,
             model.stiffness, registry.section_inertia(model), model.viscosity,
             model.distributed_world, model.distributed_local, model.mass_damping)
     else:
         f, K = jax.vmap(_static_kernel(model, lam))(
-            R[a], d, model.d0, model.length, model.stiffness,
+            RA, d, model.d0, model.length, model.stiffness,
             jax.vmap(line_density)(model.inertia), model.distributed_world,
             model.distributed_local)
         C = M = None

@@ -63,13 +63,13 @@ def flat_continuation(model: Model, settings: StaticSettings) -> Equilibrium:
     ref = load_scale(model)
 
     def body(f: _FlatState) -> _FlatState:
-        lam_try, Rs, ps, ys = trial_level(f.cont)
+        lam_try, Rs, ps, ys, d = trial_level(f.cont)
         lam = jnp.where(f.starting, lam_try, f.lam_try)
         newton = newton_pass(model, settings, lam, ref,
                              select(f.starting, newton_start(Rs, ps, ys), f.newton),
                              (f.cont.R, f.cont.p))
         ended = newton.status != RUNNING
-        cont = select(ended, after_newton(model, settings, f.cont, lam,
+        cont = select(ended, after_newton(model, settings, f.cont, d, lam,
                                           *newton_outcome(newton)), f.cont)
         return _FlatState(cont, newton, lam, ended, ~continuing(settings, cont))
 

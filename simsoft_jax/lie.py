@@ -78,9 +78,11 @@ def _coefficients_of(group, x):
     small = x < _SERIES_SWITCH
     x_safe = jnp.where(small, _SERIES_SWITCH, x)
     table = _SERIES_TABLE[group]
+    # x broadcast once: under vmap a scalar factor is broadcast anew at every product
+    xs = jnp.broadcast_to(x, table.shape[:1])
     series = jnp.asarray(table[:, -1])
     for k in range(table.shape[1] - 2, -1, -1):  # Horner, all functions at once
-        series = series * x + table[:, k]
+        series = series * xs + table[:, k]
     return jnp.where(small, series, _closed_forms(group, jnp.sqrt(x_safe)))
 
 
@@ -127,8 +129,9 @@ def translation_coefficients(w):
 # hat / vee / adjoints (spec S1-S4)
 # --------------------------------------------------------------------------------------
 
-# skew(w)_ij = -eps_ijk w_k (Levi-Civita symbol eps): the skew matrix as one product and
-# sum (a few operations in a compiled program instead of some twenty per call)
+# skew(w)_ij = -eps_ijk w_k (Levi-Civita symbol eps): the skew matrix as one contraction
+# (one or two operations in a compiled program instead of some twenty per call; exact:
+# one non-zero term per entry)
 _SKEW_BASIS = -np.array([[[float(np.linalg.det(np.eye(3)[[i, j, k]])) for k in range(3)]
                           for j in range(3)] for i in range(3)])
 
@@ -136,9 +139,7 @@ _SKEW_BASIS = -np.array([[[float(np.linalg.det(np.eye(3)[[i, j, k]])) for k in r
 def skew(w):
     """3x3 skew matrix with ``skew(w) @ y = w x y`` (the paper's eq. 115, spec S1); ``w`` (3,)
     or (3, ...) gives (3, 3, ...)."""
-    w = jnp.asarray(w)
-    basis = _SKEW_BASIS.reshape((3, 3, 3) + (1,) * (w.ndim - 1))
-    return jnp.sum(basis * w, axis=2)
+    return jnp.tensordot(_SKEW_BASIS, jnp.asarray(w), axes=([2], [0]))
 
 
 def vee_so3(W):

@@ -47,6 +47,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._xla import take_rows
+
 
 def block_matvec(blocks, x):
     """``K @ x`` for a block-tridiagonal ``K`` and ``x`` (N,6)."""
@@ -69,7 +71,7 @@ def dense(blocks):
     which[idx, idx] = 1 + idx
     which[idx[:-1], idx[1:]] = 1 + n + idx[:-1]
     which[idx[1:], idx[:-1]] = 2 * n + idx[:-1]
-    return jnp.swapaxes(stacked[which], 1, 2).reshape(6 * n, 6 * n)
+    return jnp.swapaxes(take_rows(stacked, which), 1, 2).reshape(6 * n, 6 * n)
 
 
 # Chains of at most this many nodes are solved by a dense LU of the assembled matrix, and
@@ -81,7 +83,8 @@ DENSE_LIMIT_NODES = 6
 
 
 def lu(A):
-    """Partial-pivoting LU of a square matrix: ``(lu, perm)`` with ``A[perm] = L U``;
+    """Partial-pivoting LU of a square matrix: ``(lu, perm)`` with ``A[perm] = L U``
+    (``perm`` unsigned);
     ``lu`` holds ``L`` and ``U`` transposed (``lu.T`` is LAPACK's packed factor).
 
     The row permutation is formed once here: ``jax.scipy.linalg.lu_solve`` rebuilds it
@@ -91,7 +94,7 @@ def lu(A):
     and handed back to its triangular solves without one at every solve.
     """
     factors, _, perm = jax.lax.linalg.lu(A)
-    return factors.T, perm
+    return factors.T, perm.astype(jnp.uint32)   # unsigned: its gathers wrap no index
 
 
 def lu_solve(factors, b, transpose=False):
@@ -111,7 +114,7 @@ def lu_solve(factors, b, transpose=False):
 
 
 @functools.partial(jax.tree_util.register_dataclass,
-                   data_fields=("lu", "perm", "levels"), meta_fields=("identity",))
+                   data_fields=("lu", "perm", "levels", "last"), meta_fields=("identity",))
 @dataclasses.dataclass(frozen=True)
 class Factors:
     """Factors of a block-tridiagonal ``K`` (:func:`factorize`), a pytree.
@@ -119,12 +122,13 @@ class Factors:
     Of the F nodes not in ``identity`` (all N when it is empty): ``levels`` one
     :class:`Level` per cyclic-reduction level (none for F <= ``DENSE_LIMIT_NODES``), and
     ``lu`` (6D,6D), ``perm`` (6D,) of :func:`lu` applied to the assembled chain of the D
-    nodes left after the last level (D = F without levels).
+    nodes left after the last level (D = F without levels), ``last`` (6D,6D) that chain.
     identity (static): the nodes with identity rows and columns that were left out.
     """
     lu: jax.Array
     perm: jax.Array
     levels: tuple = ()
+    last: jax.Array | None = None
     identity: tuple = ()
 
     @property
@@ -173,8 +177,8 @@ def factorize(blocks, identity: tuple = ()) -> Factors:
         rest = _rest(n, identity)
         linked = (np.diff(rest) == 1)[:, None, None]  # the blocks between rest neighbours
         diag, upper, lower = blocks
-        blocks = (diag[rest], jnp.where(linked, upper[rest[:-1]], 0.0),
-                  jnp.where(linked, lower[rest[:-1]], 0.0))
+        blocks = (take_rows(diag, rest), jnp.where(linked, take_rows(upper, rest[:-1]), 0.0),
+                  jnp.where(linked, take_rows(lower, rest[:-1]), 0.0))
     return dataclasses.replace(_factorize_chain(blocks), identity=identity)
 
 
@@ -187,7 +191,8 @@ def _factorize_chain(blocks) -> Factors:
     """:func:`factorize` of a chain without identity nodes: cyclic-reduction levels until
     at most ``DENSE_LIMIT_NODES`` nodes are left, then the dense LU of that chain."""
     levels, left = _reduce_chain(blocks, _batched_solve)
-    return Factors(*lu(dense(left)), levels)
+    last = dense(left)
+    return Factors(*lu(last), levels, last)
 
 
 def _reduce_chain(blocks, batched_solve):
@@ -220,6 +225,24 @@ def positive_definite(diag, lower):
     _, left = _reduce_chain((diag, jnp.swapaxes(lower, -1, -2), lower),
                             _batched_cholesky_solve)
     return jnp.all(jnp.isfinite(_cholesky(dense(left))))
+
+
+def pivots_positive_definite(factors: Factors) -> jax.Array:
+    """Whether the pivots of a factorization done (:func:`factorize` of ``K``) have
+    positive definite symmetric parts (bool array): the pivot blocks ``A_o`` of every
+    cyclic-reduction level, read from their inverses (for x = A y, ``x^T A^-1 x = y^T
+    A^T y = y^T A y``: ``A^-1`` has a positive definite symmetric part iff ``A`` has) in
+    one batched Cholesky test, and the chain left in one dense Cholesky test. For a
+    symmetric ``K`` (the pivots then symmetric) this is whether ``K`` is positive
+    definite (Haynsworth, as :func:`positive_definite`), without a second factorization;
+    for a non-symmetric ``K`` it is not a test of its symmetric part."""
+    def positive(A):
+        return jnp.all(jnp.isfinite(_cholesky(0.5 * (A + jnp.swapaxes(A, -1, -2)))))
+
+    if not factors.levels:
+        return positive(factors.last)
+    return positive(factors.last) & positive(
+        jnp.concatenate([level.inverse for level in factors.levels]))
 
 
 def _cholesky(A):
@@ -300,11 +323,11 @@ def solve_factored(factors: Factors, b, transpose=False):
         return _solve_levels(factors, factors.levels, b, transpose)
     n = b.shape[0]
     rest = _rest(n, factors.identity)
-    x = _solve_levels(factors, factors.levels, b[rest], transpose)
+    x = _solve_levels(factors, factors.levels, take_rows(b, rest), transpose)
     # x on the rest, b on the identity nodes: one static gather (no scatter)
     where = np.arange(rest.size, rest.size + n)
     where[rest] = np.arange(rest.size)
-    return jnp.concatenate([x, b])[where]
+    return take_rows(jnp.concatenate([x, b]), where)
 
 
 def _apply(M, x, transpose=False):

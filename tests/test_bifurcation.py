@@ -10,14 +10,18 @@ reference is the inextensible planar elastica solved here by shooting:
 x toward z), ``theta(0) = 0``, ``theta'(L) = 0``, tip ``(int cos theta, int sin theta)``.
 """
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 import simsoft_jax as sj
-from simsoft_jax import stability
+from simsoft_jax import linalg, stability
+from simsoft_jax.assembly import residual_and_tangent
 from simsoft_jax.batched import solve_static_lane
+from simsoft_jax.loads import full_loads
+from simsoft_jax.statics import branch
 
 L, EI = 1.0, 1.0
 P_CR = np.pi**2 * EI / (4 * L**2)
@@ -95,3 +99,43 @@ def test_batched_lanes_each_take_their_own_stable_side():
     tips = np.asarray(eq.p)[:, -1]
     np.testing.assert_allclose(tips[0], [x, 0.0, z], atol=2e-3)
     np.testing.assert_allclose(tips[1], [x, 0.0, -z], atol=2e-3)
+
+
+@pytest.mark.parametrize("eigh_limit", [0, 1000])
+def test_critical_kick_is_inverse_iteration_on_the_symmetric_tangent(monkeypatch, eigh_limit):
+    """Both ways to the branch-switching move (a dense eigendecomposition for short rods,
+    inverse iteration with the block factorization for long ones) give the move of the
+    package docstring: eight inverse iterations ``S^-8 d`` (NumPy, dense S: the
+    symmetric part of the tangent of the straight column past P_cr) scaled to a largest
+    nodal rotation or translation / char_length of KICK, on the side of ``d``; the move
+    is mostly a buckling mode (the eigenvectors of the negative eigenvalue of S; a
+    torsion mode of an eigenvalue close in size keeps a share after eight passes)."""
+    scene = column(crooked=0.0)
+    scene["loads"][0]["vector"] = [-P, 0.0, 0.0]
+    model = sj.build_model(sj.Scene.from_dict(scene))
+    eq = sj.solve_static(model)
+    _, blocks = residual_and_tangent(full_loads(model), eq.R, eq.p, 1.0)
+    n = model.p0.shape[0]
+    d = np.random.default_rng(3).normal(size=(n, 6))
+    d[0] = 0.0                                       # the clamped node does not move
+    monkeypatch.setattr(branch, "EIGH_LIMIT_NODES", eigh_limit)
+    kick = np.asarray(branch.critical_kick(model, blocks, jnp.asarray(d)))
+
+    K = np.asarray(linalg.dense(blocks))
+    S = 0.5 * (K + K.T)
+    x = d.ravel()
+    for _ in range(8):
+        x = np.linalg.solve(S, x)
+        x /= np.linalg.norm(x)
+    scale = np.array([1 / float(model.char_length)] * 3 + [1.0] * 3)
+    weighted = x.reshape(n, 6) * scale
+    size = np.max(np.maximum(np.linalg.norm(weighted[:, :3], axis=1),
+                             np.linalg.norm(weighted[:, 3:], axis=1)))
+    side = np.sign(np.vdot(weighted, d * scale))
+    np.testing.assert_allclose(kick, side * branch.KICK / size * x.reshape(n, 6),
+                               rtol=0, atol=1e-9 * branch.KICK)
+    lam, modes = np.linalg.eigh(S)
+    buckling = modes[:, lam < 0.0]                   # the two buckling planes
+    assert buckling.shape[1] == 2
+    k = kick.ravel()
+    assert np.linalg.norm(buckling.T @ k) > 0.95 * np.linalg.norm(k)

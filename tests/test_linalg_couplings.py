@@ -309,16 +309,21 @@ def test_identity_nodes_left_out_of_the_factorization(n, held):
 
 @pytest.mark.parametrize("n", [2, LIMIT, LIMIT + 1, 16, 17, 40])
 def test_positive_definite_matches_numpy_eigenvalues(n):
-    """The Cholesky test agrees with the sign of numpy's smallest eigenvalue, for positive
-    definite chains and for chains made indefinite by a shift of one diagonal block (at
-    each end, in the middle: its node sits on different reduction levels)."""
+    """The Cholesky test, and the one read from the pivots of :func:`linalg.factorize`,
+    agree with the sign of numpy's smallest eigenvalue, for positive definite chains and
+    for chains made indefinite by a shift of one diagonal block (at each end, in the
+    middle: its node sits on different reduction levels or in the dense chain left)."""
     rng = np.random.default_rng(n)
     diag, upper, lower = random_blocks(n, rng, symmetric=True)
     smallest = np.linalg.eigvalsh(dense_np((diag, upper, lower)))[0]
     assert smallest > 0.0
     assert bool(linalg.positive_definite(jnp.asarray(diag), jnp.asarray(lower)))
+    assert bool(linalg.pivots_positive_definite(linalg.factorize((diag, upper, lower))))
     for node in sorted({0, n // 2, n - 1}):
         shifted = diag.copy()
         shifted[node] -= (smallest + 20.0) * np.eye(6)
         assert np.linalg.eigvalsh(dense_np((shifted, upper, lower)))[0] < 0.0
         assert not bool(linalg.positive_definite(jnp.asarray(shifted), jnp.asarray(lower)))
+        # the same test read from the factorization a solve does (symmetric chains)
+        assert not bool(linalg.pivots_positive_definite(
+            linalg.factorize((shifted, upper, lower))))

@@ -38,12 +38,14 @@ from .newton import (NewtonState, newton_solve, no_tangent, update_frames,  # no
 from .settings import Equilibrium, StaticSettings, as_traced, settings_from_scene  # noqa: F401
 
 
-def _secant(R, p, R_prev, p_prev, ratio):
-    """Lie-group secant predictor ``H exp(ratio log(H_prev^-1 H))`` per node (spec 5)."""
-    def one(Ri, pi, Rq, pq):
+def _secant(R, p, R_prev, p_prev, ratio, kick):
+    """Lie-group secant predictor ``H exp(ratio d + kick)`` per node (spec 5), with the
+    last step's increment ``d = log(H_prev^-1 H)`` and a branch-switching move ``kick``
+    (N,6) (zero but right after a switch, :mod:`.branch`): ``(R, p, d)``."""
+    def one(Ri, pi, Rq, pq, k):
         d = lie.log_se3(lie.relative_pose(Rq, pq, Ri, pi))
-        return lie.compose_exp(Ri, pi, ratio * d)
-    return jax.vmap(one)(R, p, R_prev, p_prev)
+        return lie.compose_exp(Ri, pi, ratio * d + k) + (d,)
+    return jax.vmap(one)(R, p, R_prev, p_prev, kick)
 
 
 class ContinuationState(NamedTuple):
@@ -78,28 +80,30 @@ class ContinuationState(NamedTuple):
 
 
 def trial_level(c: ContinuationState):
-    """The next load level of the continuation and the secant prediction of its frames
-    (moved by ``c.kick`` after a branch switch) and joint multipliers:
-    ``(lam_try, R, p, y)``."""
+    """The next load level of the continuation, the secant prediction of its frames
+    (moved by ``c.kick`` after a branch switch) and joint multipliers, and the last load
+    step's increment ``d`` (N,6) (body-frame twists ``log(H_prev^-1 H)``, for
+    :func:`after_newton`): ``(lam_try, R, p, y, d)``."""
     lam_try = c.lam + c.dlam
     lam_try = jnp.where(lam_try > 1.0 - 1e-9, 1.0, lam_try)  # no sliver step from round-off
     ratio = (lam_try - c.lam) / jnp.maximum(c.lam - c.lam_prev, 1e-300)
     ratio = jnp.where(c.accepted >= 1, ratio, 0.0)
-    Rs, ps = update_frames(*_secant(c.R, c.p, c.R_prev, c.p_prev, ratio), c.kick)
-    return lam_try, Rs, ps, c.y + ratio * (c.y - c.y_prev)
+    Rs, ps, d = _secant(c.R, c.p, c.R_prev, c.p_prev, ratio, c.kick)
+    return lam_try, Rs, ps, c.y + ratio * (c.y - c.y_prev), d
 
 
-def after_newton(model: Model, settings: StaticSettings, c: ContinuationState, lam_try, R,
-                 p, y, its, res, status, tangent) -> ContinuationState:
+def after_newton(model: Model, settings: StaticSettings, c: ContinuationState, d, lam_try,
+                 R, p, y, its, res, status, tangent, positive) -> ContinuationState:
     """The continuation carry after the Newton solve at ``lam_try`` ended with ``status``:
     a converged level is accepted and the increment grows by 1.5 after an easy solve (fewer
     than 5 steps), up to :func:`max_load_step`; a failed one halves the increment. A level
     that converged to an unstable state right after a stable one is refused
     (:mod:`.branch`): the increment is halved, and at its smallest the level is tried
-    once more from a prediction moved toward the stable branch; after that try it is
-    accepted."""
+    once more from a prediction moved toward the stable branch (along the critical mode,
+    to the side of the last load step's increment ``d`` (N,6) of :func:`trial_level`);
+    after that try it is accepted. The other arguments are :func:`newton_outcome`'s."""
     converged = status == Status.CONVERGED
-    stable_now, lost, kick = _watch(model, c, converged, tangent)
+    stable_now, lost, kick = _watch(model, c, d, converged, tangent, positive)
     dlam_min = settings.min_step_fraction / settings.load_steps
     refine = lost & (0.5 * c.dlam >= dlam_min)
     switch = lost & ~refine & ~c.kicked & jnp.any(kick != 0.0)
@@ -121,11 +125,13 @@ def after_newton(model: Model, settings: StaticSettings, c: ContinuationState, l
         kicked=~ok & (c.kicked | switch))
 
 
-def _watch(model: Model, c: ContinuationState, converged, tangent):
+def _watch(model: Model, c: ContinuationState, d, converged, tangent, positive):
     """``(stable, lost, kick)`` after a Newton solve that ended with tangent blocks
-    ``tangent`` (:mod:`.branch`): whether that tangent is positive definite, whether a
-    converged solve lost the stability of the last accepted level, and the
-    branch-switching move (N,6) for a lost one. The checks run only when some (batched)
+    ``tangent`` (:mod:`.branch`): whether that tangent is positive definite (``positive``,
+    read from the Newton solve's factorization, where the tangent at an equilibrium is
+    symmetric, else tested here), whether a converged solve lost the stability of the
+    last accepted level, and the branch-switching move (N,6) for a lost one, to the side
+    of the last load step's increment ``d`` (N,6). The test runs only when some (batched)
     lane converged, the move only when some lane lost stability."""
     from ..batched import any_lane   # batched imports this package
 
@@ -133,11 +139,12 @@ def _watch(model: Model, c: ContinuationState, converged, tangent):
     if not branch.watched(model.structure):
         return c.stable, jnp.array(False), zero
 
-    positive = jax.lax.cond(any_lane(converged), lambda: branch.stable(tangent),
-                            lambda: c.stable)
+    if not branch.symmetric_at_equilibrium(model):
+        positive = jax.lax.cond(any_lane(converged), lambda: branch.stable(tangent),
+                                lambda: c.stable)
     lost = converged & c.stable & ~positive
-    kick = jax.lax.cond(any_lane(lost), lambda: branch.critical_kick(
-        model, tangent, branch.increment(c.R_prev, c.p_prev, c.R, c.p)), lambda: zero)
+    kick = jax.lax.cond(any_lane(lost), lambda: branch.critical_kick(model, tangent, d),
+                        lambda: zero)
     return positive, lost, kick
 
 
@@ -178,9 +185,9 @@ def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
     ref = load_scale(model)
 
     def body(c: ContinuationState) -> ContinuationState:
-        lam_try, Rs, ps, ys = trial_level(c)
+        lam_try, Rs, ps, ys, d = trial_level(c)
         outcome = newton_solve(model, settings, Rs, ps, ys, lam_try, ref, (c.R, c.p))
-        return after_newton(model, settings, c, lam_try, *outcome)
+        return after_newton(model, settings, c, d, lam_try, *outcome)
 
     c = jax.lax.while_loop(lambda c: continuing(settings, c), body,
                            continuation_start(model, settings))

@@ -12,11 +12,13 @@ import jax.numpy as jnp
 from .. import coupling, lie
 from ..assembly import residual_and_tangent
 from ..inertia import line_density
+from ..linalg import pivots_positive_definite
 from ..model import Model
 from ..newton import (RUNNING, capped, coupled_step, factorize, iterate, ladder, residual_norm,
                       step_norm, step_size, weighted_norm)
 from ..status import Status
 from ..terms import registry
+from .branch import symmetric_at_equilibrium
 from .settings import StaticSettings
 
 
@@ -65,7 +67,10 @@ class NewtonState(NamedTuple):
     evaluated trial (res), rejected trials in a row (backtracks), accepted Newton steps
     (iterations), and the status: -1 running, else a :class:`Status` code. y, base_y,
     dy: the joint multipliers like R, p and dx (empty without joints). tangent: the
-    chains' tangent blocks evaluated at the last pass's trial (at (R, p) once done)."""
+    chains' tangent blocks evaluated at the last pass's trial (at (R, p) once done).
+    positive: that tangent is positive definite, read from the pivots of its
+    factorization when the pass converged and :func:`.branch.symmetric_at_equilibrium`
+    holds (False otherwise)."""
     R: jax.Array
     p: jax.Array
     base_R: jax.Array
@@ -82,6 +87,7 @@ class NewtonState(NamedTuple):
     iterations: jax.Array
     status: jax.Array
     tangent: tuple
+    positive: jax.Array
 
 
 def level_tolerance(model: Model, settings: StaticSettings):
@@ -109,8 +115,9 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState
     r, tangent = residual_and_tangent(model, c.R, c.p, lam, settings.tangent, previous)
     system = coupling.couple(model, c.R, c.p, c.y, r, tangent)
     res = residual_norm(model, system, ref)
+    factors = factorize(model, system)
     dx, dy = capped(settings.max_rotation_step,
-                    *coupled_step(model, factorize(model, system), system.r, system.r_z))
+                    *coupled_step(model, factors, system.r, system.r_z))
     size = step_size(model, dx)
     finite = jnp.isfinite(res) & jnp.isfinite(size)
     exhausted = c.backtracks >= settings.line_search_steps
@@ -139,6 +146,12 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState
         (iterations > settings.max_iterations, Status.MAX_ITERATIONS),
         (~jnp.all(jnp.isfinite(trial_p)), Status.NONFINITE)))
     done = status != RUNNING
+    positive = jnp.array(False)
+    if symmetric_at_equilibrium(model):   # the stability watch's test, at the converged pass
+        from ..batched import any_lane    # batched imports this package
+        positive = jax.lax.cond(any_lane(status == Status.CONVERGED),
+                                lambda: pivots_positive_definite(factors.chain),
+                                lambda: positive)
     return NewtonState(
         R=jnp.where(done, c.R, trial_R), p=jnp.where(done, c.p, trial_p),
         base_R=base_R, base_p=base_p, dx=dx, y=jnp.where(done, c.y, trial_y),
@@ -146,7 +159,7 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState
         size_base=jnp.where(accept, size, c.size_base), res=res,
         res_base=jnp.where(accept, res, c.res_base),
         backtracks=jnp.where(accept, 0, c.backtracks + 1),
-        iterations=iterations, status=status, tangent=tangent)
+        iterations=iterations, status=status, tangent=tangent, positive=positive)
 
 
 def newton_start(R, p, y) -> NewtonState:
@@ -157,7 +170,7 @@ def newton_start(R, p, y) -> NewtonState:
                         y=y, base_y=y, dy=jnp.zeros_like(y),
                         step=jnp.array(1.0), size_base=inf, res=inf, res_base=inf,
                         backtracks=zero, iterations=zero, status=jnp.array(RUNNING),
-                        tangent=no_tangent(p))
+                        tangent=no_tangent(p), positive=jnp.array(False))
 
 
 def no_tangent(p):
@@ -167,10 +180,11 @@ def no_tangent(p):
 
 
 def newton_outcome(c: NewtonState):
-    """(R, p, y, Newton steps, residual norm, status code, tangent blocks at (R, p)) of a
-    finished Newton carry."""
+    """(R, p, y, Newton steps, residual norm, status code, tangent blocks at (R, p),
+    whether they are positive definite as read by the last pass) of a finished Newton
+    carry."""
     return (c.R, c.p, c.y, jnp.maximum(c.iterations - 1, 0), c.res, c.status,
-            c.tangent)
+            c.tangent, c.positive)
 
 
 def newton_solve(model: Model, settings: StaticSettings, R, p, y, lam, ref, previous=None):
@@ -185,7 +199,8 @@ def newton_solve(model: Model, settings: StaticSettings, R, p, y, lam, ref, prev
     rejected trial halves the step from the base. Every loop pass either accepts (counted
     against ``max_iterations``) or backtracks (at most ``line_search_steps`` in a row), so
     the loop always ends (:func:`newton_pass`). Returns (R, p, y, Newton steps, residual
-    norm, status code, tangent blocks at (R, p)). ``previous``: as in
+    norm, status code, tangent blocks at (R, p), their positive definiteness as
+    :class:`NewtonState` says). ``previous``: as in
     :func:`newton_pass`.
     """
     c = iterate(lambda c: newton_pass(model, settings, lam, ref, c, previous),
