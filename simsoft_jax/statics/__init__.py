@@ -22,8 +22,10 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .. import lie, mechanisms, rod_pairs, tendon_control
-from .._xla import jit
+import numpy as np
+
+from .. import compile_cache, lie, mechanisms, rod_pairs, tendon_control
+from .._xla import jit, traced
 from ..assembly import residual, residual_and_tangent
 from ..linalg import implicit_solve, implicit_solve_coupled
 from ..loads import full_loads
@@ -288,13 +290,26 @@ def solve_static(model: Model, settings: StaticSettings = StaticSettings(),
 
     Returns an :class:`Equilibrium`; when ``converged`` is False, ``status``/``cause``
     and :meth:`Equilibrium.message` say why, ``load_level`` how far the continuation got,
-    and R, p hold the last converged state. Compiled once per model structure and set of
-    integer settings (float settings are traced). Differentiable in all Model arrays
-    (implicit function theorem); the derivative of a non-converged solve is NaN.
+    and R, p hold the last converged state. Compiled once per model structure and
+    ``tangent`` (the settings that are numbers are traced). Differentiable in all Model
+    arrays (implicit function theorem); the derivative of a non-converged solve is NaN.
     ``throw=True`` raises :class:`~simsoft_jax.status.SolveError` instead of returning a
     failed solve.
+
+    Called on arrays (not inside ``jit``, ``vmap`` or ``grad``) it runs the program of
+    :func:`~simsoft_jax.run` for this structure and ``tangent`` (one compile
+    for both, said on stderr, kept in the cache folder:
+    :func:`~simsoft_jax.programs.compiled_static_solver`) and returns NumPy arrays;
+    traced, :func:`static_program`, compiled with the enclosing computation (JAX's
+    persistent cache keeps it, :func:`~simsoft_jax.compile_cache.enable`).
     """
-    eq = static_program(model, as_traced(settings))
+    compile_cache.enable()
+    if traced(model, settings):
+        eq = static_program(model, as_traced(settings))
+    else:
+        from ..programs import compiled_static_solver   # it imports this package
+        solver, _ = compiled_static_solver(model, settings)
+        eq, _ = solver(model, as_traced(settings), np.bool_(False))
     if throw:
         raise_if_failed("static", eq.converged, eq.status, eq.cause, eq.load_level,
                         eq.residual_norm)
