@@ -235,6 +235,24 @@ def announced(name: str, kept: bool):
         print(f" {time.perf_counter() - start:.1f} s", file=sys.stderr, flush=True)
 
 
+_CALLED = set()   # signatures of the calls first_call has seen
+
+
+def first_call(name: str, args, *static):
+    """:func:`announced` around a call of the program ``name`` on ``args`` (pytree) with
+    the static arguments ``static`` (hashable) that this process has not made before
+    (same pytree structure, shapes and dtypes: a call ``jax.jit`` compiles for), else a
+    block that says nothing. For a program compiled by ``jax.jit`` itself, kept by
+    JAX's persistent cache (a later process still traces and lowers it)."""
+    leaves, tree = jax.tree_util.tree_flatten(args)
+    signature = (name, tree, static,
+                 tuple((np.shape(x), np.result_type(x).name) for x in leaves))
+    if signature in _CALLED:
+        return contextlib.nullcontext()
+    _CALLED.add(signature)
+    return announced(name, kept=bool(jax.config.jax_compilation_cache_dir))
+
+
 @contextlib.contextmanager
 def _jax_cache_off():
     """JAX's own persistent cache off inside the block: a program read from it serializes

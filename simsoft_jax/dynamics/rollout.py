@@ -9,6 +9,7 @@ start of every step returns the Model that step is solved with (:func:`actuated`
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 from typing import NamedTuple
 
@@ -118,11 +119,11 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
     ``differentiable`` or ``control``, it runs the program of :func:`~simsoft_jax.run`
     for this structure (:func:`~.driver.rollout`, in chunks: one compile for both and
     for any ``steps``, said on stderr, kept in the cache folder) and returns NumPy
-    arrays; the
-    saved states after a failure then take no Newton iteration. Otherwise
+    arrays; the saved states after a failure then take no Newton iteration. Otherwise
     :func:`rollout_program` runs (JAX's persistent cache keeps it,
-    :func:`~simsoft_jax.compile_cache.enable`). ``steps`` not a multiple of
-    ``save_every``: the last ``steps % save_every`` steps are not taken.
+    :func:`~simsoft_jax.compile_cache.enable`; its first call on arrays for a structure
+    says so too, :func:`~simsoft_jax.compile_cache.first_call`). ``steps`` not a
+    multiple of ``save_every``: the last ``steps % save_every`` steps are not taken.
     A step whose Newton solve fails is retried with halved sub-steps (down to
     ``dt / 2**max_halvings``). ``differentiable=True`` differentiates every accepted
     (sub-)step by the implicit function theorem at its solution
@@ -164,8 +165,10 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
                           tangent=settings.tangent, max_halvings=settings.max_halvings,
                           cut=False)
     else:
-            traj = rollout_program(model, as_traced(settings), state, control_params,
-                               control_memory, differentiable=differentiable, control=control)
+        args = (model, as_traced(settings), state, control_params, control_memory)
+        with (contextlib.nullcontext() if traced(args) else
+              compile_cache.first_call("rollout", args, differentiable, control)):
+            traj = rollout_program(*args, differentiable=differentiable, control=control)
     if throw:
         raise_if_failed("dynamic", traj.converged, traj.status, traj.cause, traj.failed_at,
                         traj.residual)
