@@ -1,7 +1,7 @@
 """JAX's persistent compilation cache for the command line and the Python API.
 
 A compiled solver program is written to a cache folder and read back by the next
-process that needs the same program (same model structure, integer settings, jax
+process that needs the same program (same model structure, static settings, jax
 version and machine), so the second run of a scene structure starts without compiling.
 
 Where: ``$SIMSOFT_JAX_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/simsoft_jax/xla``, else
