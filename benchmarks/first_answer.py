@@ -2,8 +2,8 @@
 with an empty compilation cache (cold) and again in a new process with the cache it left
 (warm). CPU seconds per call (all threads: XLA compiles on several), and each as a ratio
 to a compile yardstick measured in the same process (the CPU seconds to compile a fixed
-JAX program: a 300-step scan of three dense 66 x 66 solves), so runs on other machines or
-at other loads compare.
+JAX program: a 300-step scan of three dense 66 x 66 solves, never read from the cache), so
+runs on other machines or at other loads compare.
 
     PYTHONPATH=. python benchmarks/first_answer.py [--base DIR] [--out DIR]
 
@@ -43,6 +43,10 @@ def yardstick():
                 x = jnp.linalg.solve(a + jnp.diag(x), x + b)
             return x / jnp.linalg.norm(x), None
         return jax.lax.scan(step, b, None, length=300)[0]
+    # compiled, never read from the persistent cache (which may keep every program)
+    from jax.experimental.compilation_cache import compilation_cache
+    jax.config.update("jax_enable_compilation_cache", False)
+    compilation_cache.reset_cache()
     t = cpu()
     jax.jit(run).lower(a, b).compile()
     return cpu() - t
@@ -58,6 +62,7 @@ timed("sj.run(static scene)", lambda: sj.run(scene).positions("beam"))
 timed("sj.run(static scene), again", lambda: sj.run(scene).positions("beam"))
 model = sj.build_model(scene)
 timed("sj.solve_static(model)", lambda: sj.solve_static(model).p)
+timed("sj.solve_static(model), again", lambda: sj.solve_static(model).p)
 grad = lambda: jax.grad(lambda K: sj.solve_static(model.replace(stiffness=K)).p[-1, 2])(
     model.stiffness)
 timed("jax.grad of the static tip", grad)
@@ -67,6 +72,7 @@ timed("sj.run(dynamic scene)", lambda: sj.run(dyn_scene).positions("rod"))
 dyn = sj.build_model(dyn_scene)
 settings = sj.DynamicSettings(dt=0.01, steps=100, rho_inf=0.9)
 timed("sj.simulate(model), 100 steps", lambda: sj.simulate(dyn, settings).p)
+timed("sj.simulate(model), 100 steps, again", lambda: sj.simulate(dyn, settings).p)
 final_tip = lambda K: sj.simulate(dyn.replace(stiffness=K), settings,
                                   differentiable=True).p[-1, -1, 2]
 timed("jax.grad through 100 steps", lambda: jax.grad(final_tip)(dyn.stiffness))

@@ -75,7 +75,7 @@ class _Jitted:
         return self._top
 
     def __call__(self, *args, **kwargs):
-        if any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves((args, kwargs))):
+        if traced(args, kwargs):
             if self._nested is None:
                 self._nested = jax.jit(self._fun, **self._kwargs)
             return self._nested(*args, **kwargs)
@@ -83,6 +83,12 @@ class _Jitted:
 
     def lower(self, *args, **kwargs):
         return self._top_level().lower(*args, **kwargs)
+
+
+def traced(*trees) -> bool:
+    """Whether any leaf of ``trees`` is a tracer: the call is inside a user's ``jit``,
+    ``vmap`` or ``grad`` (its program is compiled with the enclosing computation)."""
+    return any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(trees))
 
 
 def jit(fun=None, loop_invariant_motion: bool = True, **kwargs):

@@ -1,7 +1,7 @@
-"""JAX's persistent compilation cache for ``simsoft-jax run`` and :func:`simsoft_jax.run`.
+"""JAX's persistent compilation cache for the command line and the Python API.
 
 A compiled solver program is written to a cache folder and read back by the next
-process that needs the same program (same model structure, integer settings, jax
+process that needs the same program (same model structure, static settings, jax
 version and machine), so the second run of a scene structure starts without compiling.
 
 Where: ``$SIMSOFT_JAX_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/simsoft_jax/xla``, else
@@ -9,7 +9,12 @@ Where: ``$SIMSOFT_JAX_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/simsoft_jax/xla
 ``--no-cache``). A cache folder the user gave JAX already (``jax_compilation_cache_dir``,
 e.g. by ``JAX_COMPILATION_CACHE_DIR``) is kept. Every program is cached, however short
 its compilation (JAX's own threshold, 1 s, would leave out the small programs that a
-fresh process compiles while building a model). Where the ``filelock`` package is
+fresh process compiles while building a model, and the gradient programs of
+``jax.grad`` around :func:`simsoft_jax.solve_static` or :func:`simsoft_jax.simulate`,
+whose backward passes compile in under a second), also in a folder given to JAX, unless
+``JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS`` sets another threshold. The solvers'
+entry points turn it on: :func:`simsoft_jax.run`, :func:`simsoft_jax.solve_static`,
+:func:`simsoft_jax.simulate` and the command line. Where the ``filelock`` package is
 installed (JAX needs it for this), the folder is bounded to ``MAX_BYTES`` (least
 recently used entries dropped); otherwise it grows (each program is 0.1-2 MB).
 
@@ -54,6 +59,7 @@ from .output import write_atomic
 ENV_DIR = "SIMSOFT_JAX_CACHE_DIR"
 ENV_SWITCH = "SIMSOFT_JAX_CACHE"
 ENV_QUIET = "SIMSOFT_JAX_QUIET"
+ENV_MIN_COMPILE_TIME = "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"   # JAX's own
 # the programs' names in the compile message
 PROGRAM_NAMES = {"static": "the static solver", "rollout": "the dynamic solver"}
 # jax.monitoring duration event of a program loaded from ``<cache>/programs/`` (keyword
@@ -86,7 +92,10 @@ def enable(path=None) -> str | None:
     """
     current = jax.config.jax_compilation_cache_dir
     if path is None and (switched_off() or current):
-        return None if switched_off() else current
+        if switched_off():
+            return None
+        _keep_every_program()
+        return current
     folder = Path(path).expanduser() if path is not None else default_dir()
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -98,10 +107,20 @@ def enable(path=None) -> str | None:
         from jax.experimental.compilation_cache import compilation_cache
         compilation_cache.reset_cache()   # JAX opens its cache folder once per process
     jax.config.update("jax_compilation_cache_dir", str(folder))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    _keep_every_program()
     if importlib.util.find_spec("filelock") is not None:
         jax.config.update("jax_compilation_cache_max_size", MAX_BYTES)
     return str(folder)
+
+
+def _keep_every_program() -> None:
+    """JAX's persistent cache keeps every program, however short its compilation (module
+    docstring), unless ``JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS`` is set. JAX's
+    other threshold, the entry size (``jax_persistent_cache_min_entry_size_bytes``), is 0
+    by default: no program is left out for its size."""
+    if (ENV_MIN_COMPILE_TIME not in os.environ
+            and jax.config.jax_persistent_cache_min_compile_time_secs != 0.0):
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
 
 
 @functools.cache
@@ -214,6 +233,25 @@ def announced(name: str, kept: bool):
         yield
     finally:
         print(f" {time.perf_counter() - start:.1f} s", file=sys.stderr, flush=True)
+
+
+_CALLED = set()   # signatures of the calls first_call has seen
+
+
+def first_call(name: str, args, *static):
+    """:func:`announced` around a call of the program ``name`` on ``args`` (pytree) with
+    the static arguments ``static`` (hashable) that this process has not made before
+    (same pytree structure, shapes and dtypes: a call ``jax.jit`` compiles for), else a
+    block that says nothing. For a program compiled by ``jax.jit`` itself, kept by
+    JAX's persistent cache (a later process still traces and lowers it)."""
+    leaves, tree = jax.tree_util.tree_flatten(args)
+    signature = (name, tree, static,
+                 tuple((getattr(x, "shape", ()), getattr(x, "dtype", type(x)))
+                       for x in leaves))   # ~20 us for a model (np.shape: ~150 us)
+    if signature in _CALLED:
+        return contextlib.nullcontext()
+    _CALLED.add(signature)
+    return announced(name, kept=bool(jax.config.jax_compilation_cache_dir))
 
 
 @contextlib.contextmanager

@@ -19,65 +19,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import compile_cache, contacts
-from ._xla import jit
 from .built_models import Lru, model_of, scene_of
-from .compile_cache import compile_stored
 from .dynamics import Trajectory, rollout
-from .dynamics.driver import compile_key
-from .mechanisms import multiplier_count
 from .model import Model
 from .output import count_nonfinite, finite_or_none, write_atomic, write_json
-from .packing import Layout, pack
+from .programs import PROGRAMS, compiled_static_solver
 from .scene import Scene
-from .statics import Equilibrium, as_traced, equilibrium, settings_from_scene
-from .stability import negative_eigenvalues
+from .statics import as_traced, settings_from_scene
 from .status import Status
-
-
-_COMPILED = Lru()
-
-
-@jit
-def _solve_static_checked(model: Model, settings, check):
-    """The static solve and, when ``check`` (a traced bool) and it converged, the count
-    of negative eigenvalues of the tangent at the equilibrium
-    (:func:`~simsoft_jax.stability.negative_eigenvalues`; -1 when not counted), in one
-    program. Returns ``(R, p, rest)``: the frames, and the other fields of the
-    equilibrium with the count packed into one vector (:func:`~simsoft_jax.packing.pack`
-    of ``(eq without R and p, count)``, :func:`static_layout`): three copies to the host
-    instead of a dozen. (Packing the frames as well made the whole solve ~10 % slower:
-    the loops then keep them in XLA's temporary buffers.) Structures with rod-rod contact
-    are never checked: the count reads the chains' tangent, which lacks it."""
-    eq = equilibrium(model, settings, keep_tangent=True)
-    tangent, eq = eq.tangent, eq._replace(tangent=None)
-    if model.structure.self_contact:
-        count = jnp.array(-1)
-    else:
-        count = jax.lax.cond(check & eq.converged,
-                             lambda: negative_eigenvalues(model, eq, tangent).astype(int),
-                             lambda: jnp.array(-1))
-    return eq.R, eq.p, pack((eq._replace(R=None, p=None), count))
-
-
-def static_layout(structure) -> tuple:
-    """Shapes and types of the packed ``(Equilibrium without R and p, count)`` of
-    :func:`_solve_static_checked` for a model of ``structure``
-    (:class:`jax.ShapeDtypeStruct` leaves, None for absent fields), to unpack its output
-    without tracing it."""
-    def like(shape, dtype=np.float64):
-        return jax.ShapeDtypeStruct(shape, dtype)
-
-    n, count = structure.n_nodes, like((), np.int64)
-    frames = (like((n, 3, 3)), like((n, 3)))
-    eq = Equilibrium(
-        None, None, converged=like((), np.bool_), iterations=count, residual_norm=like(()),
-        load_level=like(()), load_steps=count, step_failures=count, status=count,
-        cause=count,
-        multipliers=like((multiplier_count(structure),)) if structure.joints else None,
-        tendon_tension=(like((len(structure.tendon_names),))
-                        if structure.tendon_names else None),
-        previous=frames if structure.has_friction else None)
-    return eq, count
 
 
 class _StaticRuns:
@@ -116,34 +65,6 @@ def _static_runs(model: Model) -> _StaticRuns:
     if runs is None or runs.model is not model:
         runs = _STATIC_RUNS[id(model)] = _StaticRuns(model)
     return runs
-
-
-def compiled_static_solver(model: Model, settings):
-    """The compiled static solver with its stability check for ``model``'s structure and
-    integer settings, and the seconds spent compiling it now (0.0 when it was already
-    compiled in this process). Call it as ``solver(model, as_traced(settings), check)``
-    (``check`` a bool): it returns the :class:`~simsoft_jax.statics.Equilibrium` and the
-    count of negative eigenvalues (-1: not counted), as NumPy arrays (one copy to the
-    host)."""
-    key = ("static",) + compile_key(model, settings)
-    if key in _COMPILED:
-        return _COMPILED[key], 0.0
-    start = time.perf_counter()
-    program = compile_stored(_solve_static_checked,
-                             (model, as_traced(settings), np.bool_(True)),
-                             jax.tree_util.tree_structure((0, 0, 0)), "static")
-    layout = Layout(static_layout(model.structure))
-
-    def compiled(*args):
-        R, p, packed = jax.device_get(program(*args))
-        eq, count = layout.unpack(packed)
-        return eq._replace(R=R, p=p), count
-    # a program's first execution in a process costs more than later ones (one-off
-    # set-up of its kernels): paid here, by a solve to an infinite tolerance (one Newton
-    # pass per load level) with its stability check (dynamics.driver._warm_up)
-    compiled(model, as_traced(settings.replace(tolerance=np.inf)), np.bool_(True))
-    _COMPILED[key] = compiled
-    return compiled, time.perf_counter() - start
 
 
 class Result:
@@ -358,7 +279,7 @@ def _run_dynamic(scene: Scene, model: Model, progress=None) -> Result:
     start = time.perf_counter()
     trajectory, compile_time = rollout(
         model, solver.dt, solver.t_end, solver.rho_inf, solver.save_every,
-        progress=progress, compiled=_COMPILED, tolerance=solver.tolerance,
+        progress=progress, compiled=PROGRAMS, tolerance=solver.tolerance,
         max_iterations=solver.max_iterations, tangent=solver.tangent)
     wall = time.perf_counter() - start - compile_time
     return Result(scene, model, trajectory, wall, compile_time)

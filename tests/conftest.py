@@ -100,9 +100,9 @@ def _release_compiled_programs(request):
     ``COUNTS_COMPILATIONS = True`` and starts with none in memory (neither JAX's nor the
     programs and built models that ``sj.run`` keeps)."""
     if getattr(request.module, "COUNTS_COMPILATIONS", False):
-        from simsoft_jax import built_models, results
+        from simsoft_jax import built_models, programs, results
 
-        for kept in (results._COMPILED, results._STATIC_RUNS, built_models._MODELS,
+        for kept in (programs.PROGRAMS, results._STATIC_RUNS, built_models._MODELS,
                      built_models._SEEN):
             kept.clear()
         _release()

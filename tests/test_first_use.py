@@ -1,7 +1,8 @@
 """What a new user meets first: ``simsoft-jax validate`` never imports JAX (it only reads
 the scene), float64 holds whatever the import order (the package imports JAX lazily),
-``sj.run`` says on stderr when it compiles a program for a new scene structure (and not
-when it loads one, nor with ``SIMSOFT_JAX_QUIET=1``), the command line's help texts are
+``sj.run``, ``sj.solve_static`` and ``sj.simulate`` say on stderr when they compile a
+program for a new scene structure (and not when they load one, nor with
+``SIMSOFT_JAX_QUIET=1``), the command line's help texts are
 plain and complete, and every notebook cell has an id (nbformat 4.5).
 
 Each check runs in a fresh Python process: what a process has imported is the point."""
@@ -88,6 +89,44 @@ def test_sj_run_says_when_it_compiles(tmp_path):
     assert later.returncode == 0, later.stderr
     assert "compiling" not in later.stderr
     quiet = python(code, dict(env, SIMSOFT_JAX_QUIET="1", SIMSOFT_JAX_CACHE="0"))
+    assert quiet.returncode == 0, quiet.stderr
+    assert "compiling" not in quiet.stderr
+
+
+def test_solve_static_and_simulate_say_when_they_compile(tmp_path):
+    """The Python API's own solvers announce their compile as ``sj.run`` does: one line
+    each for the static solver, the dynamic one and the differentiable dynamic one of a
+    new structure, with its time, at the first call only; ``SIMSOFT_JAX_QUIET=1``
+    silences it."""
+    env = dict(os.environ, SIMSOFT_JAX_CACHE_DIR=str(tmp_path / "cache"),
+               JAX_COMPILATION_CACHE_DIR=str(tmp_path / "cache"))
+    env.pop("SIMSOFT_JAX_CACHE", None)
+    env.pop("SIMSOFT_JAX_QUIET", None)
+    static = ("import simsoft_jax as sj\n"
+              f"model = sj.build_model(sj.load_scene({str(SCENE)!r}))\n"
+              "for _ in range(2):\n"
+              "    assert sj.solve_static(model).converged\n")
+    dynamic = ("scene = sj.Scene.from_dict({'name': 'fall', 'solver': {'kind': 'dynamic',\n"
+               "    'dt': 0.01, 't_end': 0.02}, 'gravity': {'vector': [0, 0, -9.81]},\n"
+               "    'rods': [{'name': 'rod', 'elements': 2, 'geometry': {'kind': 'straight',\n"
+               "    'length': 1.0}, 'stiffness': {'EA': 1e4, 'GAy': 1e4, 'GAz': 1e4,\n"
+               "    'GJ': 1.0, 'EIy': 1.0, 'EIz': 1.0}, 'inertia': {'rhoA': 1.0,\n"
+               "    'rhoJ': 1e-3, 'rhoIy': 1e-3, 'rhoIz': 1e-3}}],\n"
+               "    'constraints': [{'kind': 'clamp', 'rod': 'rod', 'node': 0}]})\n"
+               "settings = sj.DynamicSettings(dt=0.01, steps=2)\n"
+               "for _ in range(2):\n"
+               "    assert sj.simulate(sj.build_model(scene), settings).converged\n"
+               "for _ in range(2):\n"
+               "    assert sj.simulate(sj.build_model(scene), settings,\n"
+               "                       differentiable=True).converged\n")
+    first = python(static + dynamic, env)
+    assert first.returncode == 0, first.stderr
+    lines = [line for line in first.stderr.splitlines() if "compiling" in line]
+    assert len(lines) == 3, first.stderr
+    for line, what in zip(lines, ("static", "dynamic", "dynamic")):
+        assert re.fullmatch(rf"compiling the {what} solver for this scene structure "
+                            r"\(kept for next time\)\.\.\. \d+\.\d s", line), line
+    quiet = python(static, dict(env, SIMSOFT_JAX_QUIET="1", SIMSOFT_JAX_CACHE="0"))
     assert quiet.returncode == 0, quiet.stderr
     assert "compiling" not in quiet.stderr
 

@@ -210,22 +210,25 @@ def test_rollout_gradient_over_every_model_leaf():
 
 
 class _CompileCounter(logging.Handler):
-    """Counts JAX's "Compiling jit(<name>)" log records."""
+    """Counts JAX's "Compiling jit(<name>)" log records, for any of ``names``."""
 
-    def __init__(self, name):
+    def __init__(self, *names):
         super().__init__(logging.DEBUG)
-        self.name, self.count = name, 0
+        self.names, self.count = names, 0
 
     def emit(self, record):
-        if record.getMessage().startswith(f"Compiling jit({self.name})"):
+        if any(record.getMessage().startswith(f"Compiling jit({name})")
+               for name in self.names):
             self.count += 1
 
 
 def test_dt_study_compiles_once():
-    """Five time steps, two rho_inf and two tolerances on one structure: one compilation
-    of the rollout (dt, rho_inf and tolerance are traced), and each run differs."""
+    """Five time steps, two rho_inf and two tolerances on one structure: at most one
+    compilation of the rollout (dt, rho_inf and tolerance are traced; none when ``sj.run``
+    compiled it earlier in this process: ``sj.simulate`` runs its program), and each run
+    differs."""
     model = sj.build_model(sj.Scene.from_dict(dynamic_scene()))
-    counter = _CompileCounter("rollout_program")
+    counter = _CompileCounter("rollout_program", "_chunk")
     logger = logging.getLogger("jax")
     logger.addHandler(counter)
     level = logger.level
@@ -243,7 +246,7 @@ def test_dt_study_compiles_once():
     finally:
         logger.removeHandler(counter)
         logger.setLevel(level)
-    assert counter.count == 1
+    assert counter.count <= 1
     assert min(np.linalg.norm(a - b) for i, a in enumerate(tips) for b in tips[:i]) > 1e-6
 
 

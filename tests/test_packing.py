@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import built_models, results
+from simsoft_jax import built_models, programs
 from simsoft_jax.packing import Layout, pack
 from simsoft_jax.statics import as_traced, settings_from_scene
 
@@ -60,11 +60,11 @@ def test_static_layout_is_the_traced_output(scene):
     scene = sj.Scene.from_dict(scene)
     model = built_models.model_of(scene)
     settings = as_traced(settings_from_scene(scene.solver))
-    R, p, packed = jax.eval_shape(results._solve_static_checked, model, settings,
+    R, p, packed = jax.eval_shape(programs.solve_static_checked, model, settings,
                                   np.bool_(True))
     n = model.structure.n_nodes
     assert (R.shape, p.shape) == ((n, 3, 3), (n, 3))
-    layout = results.static_layout(model.structure)
+    layout = programs.static_layout(model.structure)
     size = sum(int(np.prod(x.shape)) for x in jax.tree_util.tree_leaves(layout))
     assert packed.shape == (size,)
     fields = jax.eval_shape(lambda m, st: sj.statics.equilibrium(m, st)._replace(R=None, p=None),

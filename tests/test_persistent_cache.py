@@ -64,13 +64,56 @@ def test_second_process_reads_every_program_from_the_cache(tmp_path):
     assert [p.name.split("-")[0] for p in (cache / "programs").iterdir()] == ["static"]
     warm, text = counted_run(["run", str(tmp_path / "s1.json"), "--cache-dir", str(cache),
                               "--no-stability", "-o", str(tmp_path / "r1.json")])
-    assert warm["code"] == 0 and warm["misses"] == 0 and warm["compiled"] == 0
+    assert warm["code"] == 0 and warm["misses"] == 0 and warm["compiled"] == 0, (warm, text)
     assert warm["loaded"] == 1, warm
     assert "compile " in text and "solve " in text
     for k, kappa in enumerate((0.3, 0.6)):
         rod = json.loads((tmp_path / f"r{k}.json").read_text())["rods"]["rod"]
         np.testing.assert_allclose(rod["positions"], arc(kappa, np.linspace(0, 1, 3))[0],
                                    rtol=0, atol=1e-10)
+
+
+# the derivative of the cantilever's tip height with respect to a factor on its stiffness,
+# in a process of its own, with JAX's persistent-cache events counted
+_COUNTING_GRADIENT = """
+import collections, json, sys, jax
+import simsoft_jax as sj
+seen = collections.Counter()
+jax.monitoring.register_event_listener(lambda event, **kw: seen.update([event]))
+model = sj.build_model(sj.Scene.from_dict(json.loads(sys.argv[1])))
+tip = lambda s: sj.solve_static(model.replace(stiffness=s * model.stiffness)).p[-1, 2]
+slope = float(jax.grad(tip)(1.0))
+print(json.dumps({"slope": slope, "hits": seen["/jax/compilation_cache/cache_hits"],
+                  "misses": seen["/jax/compilation_cache/cache_misses"]}))
+"""
+
+
+def test_second_process_reads_the_gradient_programs_from_the_cache(tmp_path):
+    """``jax.grad`` around ``sj.solve_static``, outside any ``jit``, compiles several
+    programs (forward, backward, small ones of JAX's own), some in well under a second:
+    a second process finds every one of them in the cache (no miss), even in a folder
+    given to JAX itself and without JAX's compile-time threshold set. Both give the
+    exact pure-bending slope: tip height ``-(1 - cos k) / k`` with ``k = M / (s EI)``,
+    so ``d/ds = (k sin k + cos k - 1) / k`` at ``s = 1``."""
+    env = dict(os.environ, SIMSOFT_JAX_CACHE_DIR=str(tmp_path / "xla"),
+               JAX_COMPILATION_CACHE_DIR=str(tmp_path / "xla"))
+    for name in ("SIMSOFT_JAX_CACHE", "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"):
+        env.pop(name, None)
+    counts = []
+    for _ in range(2):
+        out = subprocess.run([sys.executable, "-c", _COUNTING_GRADIENT,
+                              json.dumps(cantilever(0.6))], capture_output=True, text=True,
+                             timeout=600, env=env)
+        assert out.returncode == 0, out.stderr
+        counts.append(json.loads(out.stdout.splitlines()[-1]))
+    k = 0.6
+    exact = (k * np.sin(k) + np.cos(k) - 1.0) / k
+    for c in counts:
+        np.testing.assert_allclose(c["slope"], exact, rtol=1e-8)
+    assert counts[0]["misses"] >= 3, counts
+    # the second process compiles nothing: JAX's programs are read from the cache (the
+    # solve's own program, which simsoft_jax stores itself, is not counted there)
+    assert counts[1]["misses"] == 0 and counts[1]["hits"] >= counts[0]["misses"] - 1, counts
 
 
 def test_cache_folder_and_switch(monkeypatch, tmp_path):

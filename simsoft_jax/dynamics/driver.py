@@ -42,7 +42,7 @@ CHUNK_STEPS = 400
 
 def compile_key(model: Model, settings):
     """What a compiled program depends on: the model's structure and array shapes and the
-    integer settings (float settings and array values are traced)."""
+    static settings (the settings that are numbers and the array values are traced)."""
     leaves, treedef = jax.tree_util.tree_flatten(model)
     return (treedef, tuple(x.shape for x in leaves), jax.tree_util.tree_structure(settings))
 
@@ -144,10 +144,11 @@ def _placeholder_carry(model: Model):
 
 
 def _assemble(model: Model, packed, layout, blocks: int, t_end: float, dt: float,
-              interrupted: bool) -> Trajectory:
+              interrupted: bool, cut: bool = True) -> Trajectory:
     """One host (NumPy) trajectory from the chunks' packed outputs (:func:`_unpack` with
     ``layout``): the start state, then the saved state of each of the first ``blocks``
-    blocks; cut after a failure."""
+    blocks; cut after a failure when ``cut`` (else the saved states after it repeat the
+    last good one, as :func:`~.rollout.simulate` returns them)."""
     R0, p0, v0 = (np.asarray(x) for x in (model.R0, model.p0, model.v0))
     chunks = [_unpack(x, layout) for x in jax.device_get(packed)]
     final, (failed, status, cause, failed_at, residual) = chunks[-1][1:]
@@ -159,7 +160,7 @@ def _assemble(model: Model, packed, layout, blocks: int, t_end: float, dt: float
     converged = not bool(failed)
     status, cause = int(status), int(cause)
     failed_at, residual = float(failed_at), float(residual)
-    if not converged:  # saved states after the failure repeat the last good one
+    if not converged and cut:  # saved states after the failure repeat the last good one
         keep = int(np.searchsorted(time_, failed_at, side="left")) + 1
         time_, R, p, v = time_[:keep], R[:keep], p[:keep], v[:keep]
         mu = None if mu is None else mu[:keep]
@@ -168,24 +169,27 @@ def _assemble(model: Model, packed, layout, blocks: int, t_end: float, dt: float
         failed_at, residual = float(time_[-1]), np.nan
     elif abs(time_[-1] - t_end) <= 1e-9 * dt:
         time_[-1] = t_end  # round-off of the sum of the steps
-    return Trajectory(time_, R, p, v, np.bool_(converged), np.float64(failed_at),
-                      its.reshape(-1), subs.reshape(-1), final, np.int64(status),
-                      np.int64(cause), np.float64(residual), mu)
+    its, subs = (x.reshape(-1).astype(np.int64) for x in (its, subs))  # as simulate's
+    return Trajectory(time_, R, p, v, np.bool_(converged), np.float64(failed_at), its, subs,
+                      final, np.int64(status), np.int64(cause), np.float64(residual), mu)
 
 
 def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
             save_every: int = 1, progress=None, compiled=None,
-            tolerance: float = 1e-10, max_iterations: int = 25, tangent: str = "closed_form"):
+            tolerance: float = 1e-10, max_iterations: int = 25, tangent: str = "closed_form",
+            max_halvings: int = 6, cut: bool = True):
     """Run from the start state to exactly ``t_end``, saving every ``save_every``-th state.
 
     Steps of ``dt`` (s); what is left before ``t_end`` when ``t_end/dt`` or ``save_every``
     does not divide evenly is one more block of ``save_every`` equal, shorter steps
     (:func:`block_steps`), whose last state, at ``t_end``, is saved; the last saved time
     is ``t_end`` itself. Compiled once per model structure and integer settings
-    (``save_every``, ``max_iterations``, ``tangent``): any ``dt``, ``t_end``, ``rho_inf``,
-    ``tolerance`` and model array reuse the program. ``progress(t, t_end)`` is called after
-    every chunk of ``CHUNK_STEPS`` steps; the run stops at the first failed step and the
-    returned trajectory ends there. A KeyboardInterrupt after the first chunk (in
+    (``save_every``, ``max_halvings``, ``tangent``): any ``dt``, ``t_end``, ``rho_inf``,
+    ``tolerance``, ``max_iterations`` and model array reuse the program.
+    ``progress(t, t_end)`` is called after every chunk of ``CHUNK_STEPS`` steps; the run
+    stops at the first failed step and the returned trajectory ends there (with ``cut``
+    False, it keeps its length: the saved states after the failure repeat the last good
+    one and take no Newton iteration). A KeyboardInterrupt after the first chunk (in
     ``progress`` or while waiting for a chunk) stops the run too: the trajectory holds the
     completed chunks, with converged False, status ``INTERRUPTED`` and failed_at the last
     computed time (one before the first chunk is complete is raised: nothing was computed;
@@ -203,7 +207,7 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
     settings = as_traced(DynamicSettings(
         dt=float(dt), steps=per_chunk * save_every, rho_inf=float(rho_inf),
         save_every=save_every, tolerance=float(tolerance), max_iterations=int(max_iterations),
-        tangent=tangent))
+        max_halvings=int(max_halvings), tangent=tangent))
     compiled = {} if compiled is None else compiled
     key = ("rollout", per_chunk) + compile_key(model, settings)
     compile_seconds = 0.0
@@ -243,7 +247,7 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
     kept = outputs[:done]
     blocks = min(len(kept) * per_chunk, int(np.count_nonzero(h)))
     traj = _assemble(model, [o for o, _ in kept], layout, blocks, t_end, dt,
-                     interrupted and not bool(kept[-1][1].failed))
+                     interrupted and not bool(kept[-1][1].failed), cut)
     return traj, compile_seconds
 
 

@@ -9,6 +9,7 @@ start of every step returns the Model that step is solved with (:func:`actuated`
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 from typing import NamedTuple
 
@@ -16,8 +17,10 @@ import jax
 import jax.numpy as jnp
 from jax.ad_checkpoint import checkpoint_name
 
-from .. import element, lie, mechanisms
-from .._xla import jit
+import numpy as np
+
+from .. import compile_cache, element, lie, mechanisms
+from .._xla import jit, traced
 from ..assembly import apply_constraints, assemble_blocks, attachments_and_tangents
 from ..linalg import block_solve, factorize_coupled, solve_coupled
 from ..drives import reduce, slide_maps
@@ -110,8 +113,18 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
              control_params=None, control_memory=None) -> Trajectory:
     """Roll out ``settings.steps`` steps of size ``settings.dt`` (``lax.scan``).
 
-    Compiled once per model structure and set of integer settings: ``dt``, ``rho_inf`` and
-    ``tolerance`` are traced, so a study over them does not recompile.
+    Compiled once per model structure and static settings (``steps``, ``save_every``,
+    ``max_halvings``, ``tangent``): ``dt``, ``rho_inf``, ``tolerance`` and
+    ``max_iterations`` are traced, so a study over them does not recompile. Called on
+    arrays (not inside ``jit``, ``vmap`` or ``grad``) from the start state, without
+    ``differentiable`` or ``control``, it runs the program of :func:`~simsoft_jax.run`
+    for this structure (:func:`~.driver.rollout`, in chunks: one compile for both and
+    for any ``steps``, said on stderr, kept in the cache folder) and returns NumPy
+    arrays; the saved states after a failure then take no Newton iteration. Otherwise
+    :func:`rollout_program` runs (JAX's persistent cache keeps it,
+    :func:`~simsoft_jax.compile_cache.enable`; its first call on arrays for a structure
+    says so too, :func:`~simsoft_jax.compile_cache.first_call`). ``steps`` not a
+    multiple of ``save_every``: the last ``steps % save_every`` steps are not taken.
     A step whose Newton solve fails is retried with halved sub-steps (down to
     ``dt / 2**max_halvings``). ``differentiable=True`` differentiates every accepted
     (sub-)step by the implicit function theorem at its solution
@@ -137,16 +150,42 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
     its memory update discarded).
     """
     check_built_terms(model, ("viscosity", "mass_damping"))
+    compile_cache.enable()
     if state is not None:
         state = State(*(jnp.asarray(x, jnp.float64) for x in state))
     if control is None and (control_params is not None or control_memory is not None):
         raise ValueError("control: control_params and control_memory need a control policy")
-    traj = rollout_program(model, as_traced(settings), state, control_params, control_memory,
-                     differentiable=differentiable, control=control)
+    if _chunked(model, settings, state, differentiable, control):
+        from ..programs import PROGRAMS    # both import this module
+        from .driver import rollout
+        steps = settings.steps // settings.save_every * settings.save_every
+        traj, _ = rollout(model, float(settings.dt), steps * float(settings.dt),
+                          float(settings.rho_inf), settings.save_every, compiled=PROGRAMS,
+                          tolerance=float(settings.tolerance),
+                          max_iterations=int(settings.max_iterations),
+                          tangent=settings.tangent, max_halvings=settings.max_halvings,
+                          cut=False)
+    else:
+        args = (model, as_traced(settings), state, control_params, control_memory)
+        with (contextlib.nullcontext() if traced(args) else
+              compile_cache.first_call("rollout", args, differentiable, control)):
+            traj = rollout_program(*args, differentiable=differentiable, control=control)
     if throw:
         raise_if_failed("dynamic", traj.converged, traj.status, traj.cause, traj.failed_at,
                         traj.residual)
     return traj
+
+
+def _chunked(model: Model, settings: DynamicSettings, state, differentiable: bool,
+             control) -> bool:
+    """Whether :func:`simulate` runs the rollout program of :func:`~simsoft_jax.run`
+    (:func:`~.driver.rollout`, in chunks): called on arrays (not inside ``jit``, ``vmap``
+    or ``grad``), from the start state, without differentiation or control, with scalar
+    settings, a positive ``dt`` and at least one save block."""
+    return (state is None and control is None and not differentiable
+            and settings.steps >= settings.save_every and not traced(model, settings)
+            and all(np.ndim(x) == 0 for x in jax.tree_util.tree_leaves(settings))
+            and float(settings.dt) > 0.0)
 
 
 def actuated(control, params, state: State, model: Model, memory):

@@ -19,12 +19,14 @@ from ..assembly import check_tangent
 
 @dataclasses.dataclass(frozen=True)
 class DynamicSettings:
-    """Settings of a rollout. Traced floats (changing them never recompiles): dt (s),
+    """Settings of a rollout. Traced (changing them never recompiles): dt (s),
     rho_inf in [0, 1], tolerance (Newton stops when the estimated distance to the
     solution, largest nodal correction with translations / char_length and rotations in
-    rad, is below it). Static integers (part of the compiled structure): steps (number of
-    time steps), save_every (keep every k-th state), max_iterations (Newton iterations per
-    step), max_halvings (sub-stepping depth before a step is declared failed), tangent
+    rad, is below it), max_iterations (Newton iterations per step: only a bound the
+    iterations are compared with, so scenes and calls that differ in it share one
+    program). Static integers (part of the compiled structure): steps (number of
+    time steps), save_every (keep every k-th state),
+    max_halvings (sub-stepping depth before a step is declared failed), tangent
     ("closed_form" or "autodiff": how element blocks of the iteration matrix are built;
     same matrix, different speed)."""
     dt: float
@@ -45,8 +47,8 @@ class DynamicSettings:
 
 
 jax.tree_util.register_dataclass(
-    DynamicSettings, data_fields=["dt", "rho_inf", "tolerance"],
-    meta_fields=["steps", "save_every", "max_iterations", "max_halvings", "tangent"])
+    DynamicSettings, data_fields=["dt", "rho_inf", "tolerance", "max_iterations"],
+    meta_fields=["steps", "save_every", "max_halvings", "tangent"])
 
 
 class State(NamedTuple):

@@ -22,8 +22,10 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .. import coupling, lie, mechanisms, tendon_control
-from .._xla import jit
+import numpy as np
+
+from .. import compile_cache, coupling, lie, mechanisms, tendon_control
+from .._xla import jit, traced
 from ..assembly import residual, residual_and_tangent
 from ..linalg import implicit_solve_coupled
 from ..loads import full_loads
@@ -286,11 +288,7 @@ def equilibrium(model: Model, settings: StaticSettings, continuation=None,
                        status=jnp.where(failed, Status.MAX_ITERATIONS, eq.status))
 
 
-def transformed(tree) -> bool:
-    """Whether some array of ``tree`` is traced (under ``jit``, ``grad``, ``vmap``...)."""
-    return any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(tree))
-
-
+@jit(static_argnames="tangent")
 def differentiable(eq: Equilibrium, model: Model, tangent: str) -> Equilibrium:
     """``eq``, solved for ``model`` (without displacement-controlled tendons), with the
     implicit derivative in ``model`` attached outside the compiled solve
@@ -306,6 +304,15 @@ def differentiable(eq: Equilibrium, model: Model, tangent: str) -> Equilibrium:
                        else None)
 
 
+def _compiled(model: Model, settings: StaticSettings) -> Equilibrium:
+    """The equilibrium of plain arrays by ``sj.run``'s compiled static program for this
+    structure (:func:`simsoft_jax.programs.compiled_static_solver`, the stability count
+    switched off), so that both share one program."""
+    from ..programs import compiled_static_solver   # it imports this package
+    solver, _ = compiled_static_solver(model, settings)
+    return solver(model, as_traced(settings), np.bool_(False))[0]
+
+
 @jit
 def static_program(model: Model, settings: StaticSettings) -> Equilibrium:
     return equilibrium(model, settings)
@@ -317,18 +324,29 @@ def solve_static(model: Model, settings: StaticSettings = StaticSettings(),
 
     Returns an :class:`Equilibrium`; when ``converged`` is False, ``status``/``cause``
     and :meth:`Equilibrium.message` say why, ``load_level`` how far the continuation got,
-    and R, p hold the last converged state. Compiled once per model structure and set of
-    integer settings (float settings are traced). Differentiable in all Model arrays
-    (implicit function theorem); the derivative of a non-converged solve is NaN.
+    and R, p hold the last converged state. Compiled once per model structure and
+    ``tangent`` (the settings that are numbers are traced). Differentiable in all Model
+    arrays (implicit function theorem); the derivative of a non-converged solve is NaN.
     ``throw=True`` raises :class:`~simsoft_jax.status.SolveError` instead of returning a
     failed solve.
+
+    Called on arrays (not inside ``jit``, ``vmap`` or ``grad``) it runs the program of
+    :func:`~simsoft_jax.run` for this structure and ``tangent`` (one compile
+    for both, said on stderr, kept in the cache folder:
+    :func:`~simsoft_jax.programs.compiled_static_solver`) and returns NumPy arrays;
+    traced, :func:`static_program`, compiled with the enclosing computation (JAX's
+    persistent cache keeps it, :func:`~simsoft_jax.compile_cache.enable`).
     """
-    traced = as_traced(settings)
-    if any(model.structure.tendon_displaced) or not transformed(model):
-        eq = static_program(model, traced)   # (the tendons' derivative is in the program)
+    compile_cache.enable()
+    if not traced(model, settings):
+        eq = _compiled(model, settings)
+    elif any(model.structure.tendon_displaced):   # their tensions' derivative: in the program
+        eq = static_program(model, as_traced(settings))
     else:   # the program's answer, its derivative attached by a program of its own
-        eq = differentiable(static_program(jax.lax.stop_gradient(model), traced), model,
-                            traced.tangent)
+        primal = jax.lax.stop_gradient(model)   # plain arrays under an eager grad or jvp
+        eq = (static_program(primal, as_traced(settings)) if traced(primal, settings)
+              else _compiled(primal, settings))
+        eq = differentiable(eq, model, settings.tangent)
     if throw:
         raise_if_failed("static", eq.converged, eq.status, eq.cause, eq.load_level,
                         eq.residual_norm)

@@ -16,8 +16,10 @@ from ..status import describe
 
 @dataclasses.dataclass(frozen=True)
 class StaticSettings:
-    """Solver settings. Floats are traced (changing them never recompiles); the integers
-    (max_iterations, load_steps, max_attempts, line_search_steps) are static structure.
+    """Solver settings. Numbers are traced (changing them never recompiles: the integers
+    max_iterations, load_steps, max_attempts and line_search_steps are only bounds and
+    divisors, so scenes and calls that differ in them share one program); ``tangent`` is
+    static structure.
     ``level_tolerance=0`` (with ``max_load_step`` left None) solves every level to
     ``tolerance`` in at least ``load_steps`` levels (the strict continuation).
 
@@ -81,17 +83,16 @@ class StaticSettings:
         return dataclasses.replace(self, **changes)
 
 
-_STATIC_INTEGERS = ("max_iterations", "load_steps", "max_attempts", "line_search_steps",
-                    "tangent")
+_STATIC = ("tangent",)
 jax.tree_util.register_dataclass(
     StaticSettings,
     data_fields=[f.name for f in dataclasses.fields(StaticSettings)
-                 if f.name not in _STATIC_INTEGERS],
-    meta_fields=list(_STATIC_INTEGERS))
+                 if f.name not in _STATIC],
+    meta_fields=list(_STATIC))
 
 
 def as_traced(settings):
-    """``settings`` with every float leaf a float64 array, so that Python floats, NumPy
+    """``settings`` with every number a float64 array, so that Python numbers, NumPy
     scalars and arrays all hit the same compiled program. Host numbers become NumPy
     arrays (a compiled program transfers them when called; no device transfer each),
     JAX arrays and tracers stay JAX arrays."""
