@@ -108,8 +108,9 @@ def check_mechanism(kind: str, bodies: tuple, joints: tuple, constraints: tuple 
             if np.any(np.linalg.eigvalsh(0.5 * (body.inertia + body.inertia.T)) <= 0.0):
                 fail(join(index("bodies", i), "inertia"), "a body without a weld needs a "
                      "positive definite inertia in a dynamic scene (its rotation is free)")
-    if joints and kind == "dynamic":
-        for i, c in enumerate(constraints):
-            if getattr(c, "slides_along", None) is not None:
-                fail(join(index("constraints", i), "slides_along"), "a sliding drive and "
-                     "joints in one dynamic scene are not supported yet")
+    ends = {(end.rod, end.node) for j in joints for end in (j.a, j.b) if end.rod is not None}
+    for i, c in enumerate(constraints):
+        if getattr(c, "slides_along", None) is not None and (c.rod, c.node) in ends:
+            fail(join(index("constraints", i), "slides_along"), f"a joint acts on node "
+                 f"{c.node} of rod {c.rod!r}, which this drive slides: a sliding node "
+                 "cannot be a joint end (put the joint on another node)")

@@ -279,10 +279,10 @@ def test_ball_joint_lets_the_ends_turn_freely():
                                     "b": {"body": "p"}})),
      r"^bodies\[0\]\.inertia: a body without a weld needs a positive definite"),
     (lambda d: (d["solver"].update(kind="dynamic", t_end=1.0, dt=0.01),
-                d["constraints"][1].update(kind="drive", times=[0.0, 1.0],
+                d["constraints"][1].update(kind="drive", node=-1, times=[0.0, 1.0],
                                            displacement=[[0, 0, 0], [0.1, 0, 0]],
                                            slides_along=[1.0, 0.0, 0.0])),
-     r"^constraints\[1\]\.slides_along: a sliding drive and joints"),
+     r"^constraints\[1\]\.slides_along: a joint acts on node"),
 ])
 def test_bad_mechanisms_are_rejected_naming_the_key(change, message):
     d = {"solver": {"kind": "static"}, "rods": [rod("a"), rod("b")],

@@ -88,12 +88,12 @@ def initial_state(model: Model, t0=0.0, inert=None) -> State:
     attached = attachments_and_tangents(model, 1.0, model.R0, model.v0, zeros, dynamic=True)
     if attached is not None:   # attached masses' spatial inertia at their nodes
         blocks = (blocks[0] + attached[3],) + tuple(blocks[1:])
+    mask = s.free_mask()
     if s.slide_drives:  # a sliding node accelerates along its direction (w = 0: B = C^T)
         C, B, mask = slide_maps(model, model.R0, zeros)
-        g, blocks = apply_constraints(mask, *reduce(C, B, g, blocks))
-        vd0 = jnp.einsum("nij,nj->ni", B, -block_solve(blocks, g))
-    elif s.joints:
-        g, blocks = apply_constraints(s.free_mask(), g, blocks)
+        g, blocks = reduce(C, B, g, blocks)
+    g, blocks = apply_constraints(mask, g, blocks)
+    if s.joints:
         mu = jnp.zeros(mechanisms.multiplier_count(s), g.dtype)
         system = mechanisms.couple(model, model.R0, model.p0, mu, g, blocks)
         nb = 6 * len(s.coupling_nodes)
@@ -103,8 +103,9 @@ def initial_state(model: Model, t0=0.0, inert=None) -> State:
                              -r_z)
         vd0 = mechanisms.split(s, x, z)[0]
     else:
-        g, blocks = apply_constraints(s.free_mask(), g, blocks)
         vd0 = -block_solve(blocks, g, s.identity_nodes())
+    if s.slide_drives:
+        vd0 = jnp.einsum("nij,nj->ni", B, vd0)
     return State(model.R0, model.p0, model.v0, vd0, vd0, t0)
 
 
