@@ -204,10 +204,18 @@ def element_data(model: Model, maps=None, masses=None) -> ElementData:
 
 def rod_end_flags(structure) -> np.ndarray:
     """Static (E,2) flags: 1 where an element's node A is its rod's first node (column 0)
-    or its node B the rod's last (column 1), else 0."""
+    or its node B the rod's last (column 1), else 0; a rod end joined to another rod's
+    node (a weld or ball joint) is no free end: welded rods meet as one rod does."""
     ends = np.zeros((structure.n_elements, 2))
     for info in structure.rods:
         ends[info.first_element, 0] = ends[info.first_element + info.elements - 1, 1] = 1.0
+    a = np.asarray(structure.element_nodes)
+    rod_nodes = set(a.tolist()) | set((a + 1).tolist())
+    for _, na, nb in structure.joints:
+        if na in rod_nodes and nb in rod_nodes:
+            for n in (na, nb):
+                ends[a == n, 0] = 0.0
+                ends[a + 1 == n, 1] = 0.0
     return ends
 
 

@@ -43,13 +43,16 @@ def _hash(cells):
 
 
 def candidate_pairs(centre, radius, near_pair, rod_of, s_start, s_end, exclusion,
-                    capacity: int):
+                    capacity: int, joined=None):
     """Element pairs ``(e (P,), f (P,), active (P,) bool, overflow ())`` with ``P =
     capacity`` (module docstring); ``near_pair(e, f)`` (vectorized over index arrays)
     the finer test a pair of overlapping spheres must pass too (the chords within
     reach, :mod:`simsoft_jax.rod_pairs`); ``rod_of`` (E,) NumPy ints (static),
     ``s_start``, ``s_end`` (E,) the elements' arclength ends along their rod (m),
-    ``exclusion`` () m. Inactive slots hold the pair (0, 0)."""
+    ``exclusion`` () m; ``joined`` (E,J,2) or None: each element's arclength distance (m)
+    to the two ends of each joint between rod nodes (inf off their rods), so that
+    elements within ``exclusion`` of each other through a joint do not touch either.
+    Inactive slots hold the pair (0, 0)."""
     n = centre.shape[0]
     size = 2.0 * jnp.max(radius)
     cells = jnp.floor(centre / size).astype(jnp.int64)
@@ -69,6 +72,10 @@ def candidate_pairs(centre, radius, near_pair, rod_of, s_start, s_end, exclusion
     rod = jnp.asarray(rod_of)
     gap = s_start[f] - s_end[e]
     neighbours = (rod[e] == rod[f]) & (gap < exclusion)
+    if joined is not None:   # through a joint: e near one end, f near the other
+        a, b = joined[..., 0], joined[..., 1]
+        neighbours = neighbours | jnp.any((a[e] + b[f] < exclusion)
+                                          | (b[e] + a[f] < exclusion), axis=-1)
     overlap = jnp.sum((centre[e] - centre[f]) ** 2, -1) < (radius[e] + radius[f]) ** 2
     keep = (inside & (f > e) & overlap & ~neighbours & near_pair(e, f)).reshape(-1)
     count = jnp.sum(keep)

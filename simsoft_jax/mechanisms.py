@@ -119,7 +119,7 @@ def _joint_values_and_jacobians(model, R, p, mu, kind, members, k, z, T=None):
     return value, jac
 
 
-def _in_chain(structure) -> np.ndarray:
+def chain_mask(structure) -> np.ndarray:
     """(N,) 1 on the nodes solved in the chains, 0 on the coupling nodes (static)."""
     chain = np.ones(structure.n_nodes)
     chain[list(structure.coupling_nodes)] = 0.0
@@ -137,7 +137,7 @@ def _residuals(model, r, joint_values):
     nb = len(s.coupling_nodes)
     r_z = jnp.concatenate([r[nodes].reshape(-1),
                            jnp.zeros(coupling_count(s) - 6 * nb, r.dtype)])
-    r = r * jnp.asarray(_in_chain(s))[:, None]
+    r = r * jnp.asarray(chain_mask(s))[:, None]
     for value, (_, _, _, is_rod, node, dof, z) in zip(joint_values, _groups(s)):
         rod = jnp.asarray(is_rod, r.dtype)                  # (J, 12 + k)
         r = r.at[node, dof].add(value * mask[node, dof] * rod)
@@ -160,7 +160,7 @@ def couple(model, R, p, mu, r, blocks, T=None) -> Coupled:
     n = s.n_nodes
     # a coupling node's rows, and the element blocks joining it to its chain neighbours,
     # leave the chain (scatter-adds and masks only: reverse mode transposes them)
-    in_chain = _in_chain(s)
+    in_chain = chain_mask(s)
     link = in_chain[:-1] * in_chain[1:]          # element blocks that stay in a chain
     column = {i: slice(6 * k, 6 * k + 6) for k, i in enumerate(s.coupling_nodes)}
     for i, cols in column.items():
@@ -220,7 +220,7 @@ def split(structure, x, z):
     (N,6) (coupling-node rows from z) and the multiplier increments (M,)."""
     nb = len(structure.coupling_nodes)
     nodes = jnp.asarray(structure.coupling_nodes, dtype=int)
-    return (x * _in_chain(structure)[:, None]
+    return (x * chain_mask(structure)[:, None]
             + jnp.zeros_like(x).at[nodes].add(z[:6 * nb].reshape(nb, 6)), z[6 * nb:])
 
 

@@ -55,6 +55,42 @@ def _arclength(structure, length):
     return s0, s0 + length
 
 
+def _joint_ends(structure):
+    """Static ``(element, at_end)`` (J,2) of both ends of each joint between two rod
+    nodes: an element of the node's rod that has it as its start (False) or end (True)."""
+    a = np.asarray(structure.element_nodes)
+    ends = []
+    for _, na, nb in structure.joints:
+        pair = []
+        for n in (na, nb):
+            starts, stops = np.nonzero(a == n)[0], np.nonzero(a + 1 == n)[0]
+            if starts.size + stops.size == 0:       # a body node: no element
+                break
+            pair.append((int(starts[0]), False) if starts.size else (int(stops[0]), True))
+        if len(pair) == 2:
+            ends.append(pair)
+    return ends
+
+
+def _joint_distances(structure, s0, s1):
+    """(E,J,2) arclength distance (m) of every element to both ends of each joint between
+    rod nodes (0 for the elements that have the node, inf off the node's rod); None
+    without such joints."""
+    ends = _joint_ends(structure)
+    if not ends:
+        return None
+    rod_of = _rod_of(structure)
+    out = []
+    for pair in ends:
+        sides = []
+        for element, at_end in pair:
+            s_node = s1[element] if at_end else s0[element]
+            d = jnp.maximum(0.0, jnp.maximum(s0 - s_node, s_node - s1))
+            sides.append(jnp.where(jnp.asarray(rod_of == rod_of[element]), d, jnp.inf))
+        out.append(jnp.stack(sides, axis=-1))
+    return jnp.stack(out, axis=1)
+
+
 def find_pairs(model, R, p) -> Pairs:
     """The candidate element pairs at frames R (N,3,3), p (N,3)."""
     s = model.structure
@@ -86,7 +122,7 @@ def find_pairs(model, R, p) -> Pairs:
     s0, s1 = _arclength(s, model.length)
     e, f, active, overflow = broad_phase.candidate_pairs(
         centre, radius, near_pair, rod_of, s0, s1,
-        model.self_exclusion, s.contact_pairs)
+        model.self_exclusion, s.contact_pairs, _joint_distances(s, s0, s1))
     a = jnp.asarray(s.element_nodes)
     nodes = jnp.stack([a[e], a[e] + 1, a[f], a[f] + 1], axis=1)
     return Pairs(e, f, active, overflow, nodes)

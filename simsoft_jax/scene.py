@@ -155,8 +155,8 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
                       if "magnetic_field" in raw else None)
     fluid = parse_fluid(raw["fluid"]) if "fluid" in raw else None
     check_fluid_rods(fluid, rods.values())
-    check_self_contact(contact, solver.kind, bool(bodies or joints),
-                       [o.name for o in obstacles], constraints, tendons)
+    check_self_contact(contact, solver.kind, [o.name for o in obstacles], constraints,
+                       tendons)
     if solver.kind == "dynamic":
         warn_short_features(loads, constraints, solver.dt)
     check_loads_on_held_nodes(raw.get("loads", []), loads, constraints)

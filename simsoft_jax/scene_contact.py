@@ -152,16 +152,13 @@ def parse_contact(value) -> ContactSpec:
     return ContactSpec(**args)
 
 
-def check_self_contact(contact, kind: str, mechanisms: bool, obstacle_names,
+def check_self_contact(contact, kind: str, obstacle_names,
                        constraints=(), tendons=()) -> None:
-    """Rod-rod contact is solved in scenes without joints or bodies, and in dynamic ones
-    without sliding drives or displacement-controlled tendons (each has its own border in
-    the Newton system); its result entry ``contacts.rods`` must not clash with an
-    obstacle's name."""
+    """Rod-rod contact is solved with joints and bodies, and in dynamic scenes without
+    sliding drives or displacement-controlled tendons; its result entry ``contacts.rods``
+    must not clash with an obstacle's name."""
     if contact is None or not contact.self_contact:
         return
-    if mechanisms:
-        fail("contact.self", "rod-rod contact is not supported with joints or bodies")
     if kind == "dynamic":
         for i, c in enumerate(constraints):
             if getattr(c, "slides_along", None) is not None:

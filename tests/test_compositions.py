@@ -101,3 +101,64 @@ def test_gradient_through_welded_rods_on_a_sliding_drive_equals_finite_differenc
                    for i in range(2)])
     assert np.abs(fd).min() > 1e-6
     np.testing.assert_allclose(g, fd, rtol=1e-5)
+
+
+# ------------------------------------------------ rod-rod contact with joints and bodies
+
+N_TOP, L_TOP, R_C = 4, 0.2, 0.005
+
+
+def contact_rod(name, x0, length, elements, along_y=False, z=0.0):
+    return {"name": name, "elements": elements,
+            "geometry": {"kind": "straight", "length": length},
+            "base": {"position": [0.0, x0, z] if along_y else [x0, 0.0, z],
+                     "rotation": [0.0, 0.0, np.pi / 2 if along_y else 0.0]},
+            "stiffness": {"EA": 1e7, "GAy": 1e7, "GAz": 1e7, "GJ": 1.0, "EIy": 1.0,
+                          "EIz": 1.0},
+            "inertia": {"rhoA": 1.0, "rhoJ": 1e-6, "rhoIy": 1e-6, "rhoIz": 1e-6}}
+
+
+def cantilever_on_a_rod(welded: bool, kind="static"):
+    """A cantilever along x (clamped at x = -L/2) pressed by a tip force onto a rod along
+    y clamped at both ends, crossing at the cantilever's middle node; ``welded``: the
+    cantilever is two rods welded at that node (a coupling node of the joint)."""
+    from simsoft_jax.terms.contact import SMOOTHING
+    z = 2 * R_C - SMOOTHING * 2 * R_C      # a smoothing width into the contact
+    if welded:
+        top = [contact_rod("a", -L_TOP / 2, L_TOP / 2, N_TOP // 2, z=z),
+               contact_rod("b", 0.0, L_TOP / 2, N_TOP // 2, z=z)]
+        joints = [{"kind": "weld", "a": {"rod": "a", "node": -1},
+                   "b": {"rod": "b", "node": 0}}]
+    else:
+        top, joints = [contact_rod("a", -L_TOP / 2, L_TOP, N_TOP, z=z)], []
+    solver = ({"kind": "static", "load_steps": 5} if kind == "static" else
+              {"kind": "dynamic", "dt": 0.005, "t_end": 0.03, "rho_inf": 0.8})
+    return {"solver": solver,
+            "rods": top + [contact_rod("bottom", -L_TOP / 2, L_TOP, N_TOP, along_y=True)],
+            "constraints": [{"kind": "clamp", "rod": "a", "node": 0}]
+                           + [{"kind": "clamp", "rod": "bottom", "node": n} for n in (0, -1)],
+            "joints": joints,
+            "loads": [{"kind": "force", "rod": "b" if welded else "a", "node": -1,
+                       "vector": [0.0, 0.0, -2.0]}],
+            "contact": {"radius": R_C, "self": True, "max_pairs": 6,
+                        "quadrature_points": 4}}
+
+
+@pytest.mark.parametrize("kind", ["static", "dynamic"])
+def test_welded_cantilever_on_a_rod_equals_one_rod(kind):
+    """Rod-rod contact with a weld at the crossing: the welded pair gives the one rod's
+    answer (the weld's two elements never touch each other), and the contact holds it
+    (its middle stays on the lower rod while a free cantilever would sink through)."""
+    pair = sj.run(sj.Scene.from_dict(cantilever_on_a_rod(True, kind)))
+    one = sj.run(sj.Scene.from_dict(cantilever_on_a_rod(False, kind)))
+    assert pair.converged and one.converged
+    both = np.concatenate([pair.positions("a"), pair.positions("b")[..., 1:, :]], axis=-2)
+    ref = one.positions("a")
+    np.testing.assert_allclose(both, ref, atol=1e-8)
+    np.testing.assert_allclose(pair.positions("bottom"), one.positions("bottom"), atol=1e-8)
+    middle = ref[..., N_TOP // 2, 2] - one.positions("bottom")[..., N_TOP // 2, 2]
+    assert np.all(middle > 1.5 * R_C)          # on top of the lower rod, not through it
+    if kind == "static":
+        tip = ref[..., -1, 2] - ref[..., 0, 2]
+        free_tip = -2.0 * L_TOP ** 3 / 3.0      # the free cantilever's F L^3 / 3 EI
+        assert tip > 0.5 * free_tip             # the contact carries part of the load
