@@ -23,8 +23,10 @@ Model choices and caveats (stated by the data's README, kept here):
 
 Printed: for every measured row, the measured tip height, the author's own model
 (labelled NOT_MEASURED in the file), this model's, and the solved tension; the three
-tendons give the same height by the robot's symmetry. Writes tip_heights.png and
-summary.json.
+tendons give the same height by the robot's symmetry. Writes tip_heights.png,
+summary.json and one scene file per row, ``tdcr_<t1>_<t2>_<t3>mm.toml`` (pulls in mm), the
+names the shipped table map ``tdcr-tip-height`` reads the data's table into
+(``simsoft-jax calibrate --table-map tdcr-tip-height``).
 """
 import csv
 
@@ -58,10 +60,16 @@ def _tendon(k, pull):
             "offset": [OFFSET * np.cos(angle), OFFSET * np.sin(angle)], **control}
 
 
+def scene_name(pulls):
+    """``tdcr_<t1>_<t2>_<t3>mm``, the pulls (3,) m in whole millimetres: the scene names
+    the shipped table map ``tdcr-tip-height`` gives the data's rows."""
+    return "tdcr_" + "_".join(f"{1e3 * p:.0f}" for p in pulls) + "mm"
+
+
 def scene(pulls, elements):
     """The upright robot with the three tendons pulled by ``pulls`` (3,) m."""
     return {
-        "name": "tdcr_isir",
+        "name": scene_name(pulls),
         "solver": {"kind": "static", "load_steps": 20},
         "gravity": {"vector": [0.0, 0.0, -9.81]},
         "materials": [{"name": "nitinol", "E": 83e9, "nu": 0.33, "density": 6450.0}],
@@ -83,7 +91,9 @@ def main():
     rows = list(measured_rows())
     table = []
     for pulls, z_measured, z_author in rows:
-        result = sj.run(scene(pulls, elements), stability=False)
+        robot = sj.Scene.from_dict(scene(pulls, elements))
+        sj.save_scene(robot, args.out / f"{robot.name}.toml")
+        result = sj.run(robot, stability=False)
         tip = result.positions("backbone")[-1]
         tensions = [result.tendon_tension(f"t{k}") for k in (1, 2, 3)]
         table.append({"pull_m": pulls.tolist(), "z_measured_m": z_measured,

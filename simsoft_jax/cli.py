@@ -20,7 +20,8 @@
   upper|lower|alternate] [--within test]``: by a column) predicted after the fit with
   their errors per quantity, and groups the data cannot identify named with the reason;
   ``--table-map pazy-tip-sweep|MAP.toml [--where skin=0]`` reads a data set's own table
-  (e.g. the Pazy ``tip_mass_sweep_measured.csv``) as observations;
+  (e.g. the Pazy ``tip_mass_sweep_measured.csv``) as observations (shipped maps:
+  ``pazy-tip-sweep``, ``prepazy-tip-sweep``, ``minguet-strips``, ``tdcr-tip-height``);
 * ``predict --fitted fitted.json --scenes S... --measurements held_out.csv``: per-row
   predictions and errors with a fitted result;
 * ``bench [--quick] [--only NAMES] [--out DIR]``: the benchmark suite of the source
@@ -409,7 +410,9 @@ def _add_table_options(parser):
                         "through a map: a TOML file (scene/reference templates, rod, node, "
                         "[[quantities]] column, quantity, scale, std, offset; see "
                         "simsoft_jax.measurements.load_table_map) or a shipped one: "
-                        "pazy-tip-sweep (tip_mass_sweep_measured.csv of the Pazy wing)")
+                        "pazy-tip-sweep, prepazy-tip-sweep (the Pazy and Pre-Pazy tip-mass "
+                        "sweeps), minguet-strips (the Minguet-Dugundji displacements), "
+                        "tdcr-tip-height (the ISIR tendon robot)")
     parser.add_argument("--where", action="append", metavar="COLUMN=VALUE[,VALUE]",
                         help="with --table-map: keep only the table rows whose COLUMN holds "
                         "one of the values (repeatable, e.g. --where skin=0 --where "

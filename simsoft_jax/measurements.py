@@ -344,13 +344,16 @@ def observation_set(path, scenes: Sequence, table_map: "TableMap | None" = None)
 class QuantityColumn(NamedTuple):
     """One measured column of a data set's table: column (its header), quantity (a
     :data:`QUANTITIES` name), scale (the factor to the quantity's SI unit, e.g.
-    pi/180 for degrees, 1e-3 for mm), std (the measurement std in the SI unit; 1 =
-    unweighted), offset (3,) the observed point in the node's section frame (m)."""
+    pi/180 for degrees, 1e-3 for mm, -1 for a column holding -u), std (the measurement
+    std in the SI unit; 1 = unweighted), offset (3,) the observed point in the node's
+    section frame (m), where ``{column: (values...)}``: read this column only on the
+    rows whose cells match (a long table, where a column names what a row measures)."""
     column: str
     quantity: str
     scale: float = 1.0
     std: float = 1.0
     offset: tuple = (0.0, 0.0, 0.0)
+    where: dict = {}
 
 
 class TableMap(NamedTuple):
@@ -360,13 +363,18 @@ class TableMap(NamedTuple):
     as written, or as a number when a format spec follows the colon); rod and node (in
     the scene, negative from the end) the observed section; quantities the measured
     columns (:class:`QuantityColumn`); where ``{column: (values...)}`` keeps only the rows
-    whose cell equals one of the values (numbers compare as numbers)."""
+    whose cell equals one of the values (numbers compare as numbers); zero_within (a
+    template naming a row's loading run, e.g. ``"{test}_{skin}_{load_sequence}"``; None:
+    the table is zeroed) subtracts from every reading the same quantity's reading on the
+    run's row whose scene is its own reference (the unloaded reading, for a table of
+    absolute positions)."""
     scene: str
     rod: str
     node: int
     quantities: tuple
     reference: str | None = None
     where: dict = {}
+    zero_within: str | None = None
 
 
 class _Cell(str):
@@ -383,6 +391,11 @@ def _same(cell: str, value) -> bool:
         return cell == str(value).strip()
 
 
+def _matches(cells: dict, where: dict) -> bool:
+    """True when every ``where`` column's cell equals one of its values."""
+    return all(any(_same(cells[c], v) for v in values) for c, values in where.items())
+
+
 def _fill(path: Path, line: int, template: str, cells: dict, what: str) -> str:
     try:
         return template.format_map(cells)
@@ -397,12 +410,13 @@ def _fill(path: Path, line: int, template: str, cells: dict, what: str) -> str:
 def read_table(path, table_map: TableMap) -> list[Observation]:
     """Observations (:class:`Observation`, as :func:`read_observations` gives them) from a
     data set's own CSV table (e.g. ``tip_mass_sweep_measured.csv`` of the Pazy wing), one
-    per row and measured column of ``table_map``: value = cell x scale, std, offset,
-    rod, node from the map, scene and reference from its templates, every cell of the
-    row kept in ``columns`` (for splits, e.g. ``--hold-out-by tip_mass_kg``). An empty
-    cell is "not measured" (skipped); so is a row whose scene is its own reference (its
-    relative values vanish by definition). Errors name the file, the line and the
-    column."""
+    per row and measured column of ``table_map`` (a column with its own ``where`` only on
+    the rows it matches): value = cell x scale (minus the run's unloaded reading with
+    ``zero_within``), std, offset, rod, node from the map, scene and reference from its
+    templates, every cell of the row kept in ``columns`` (for splits, e.g.
+    ``--hold-out-by tip_mass_kg``). An empty cell is "not measured" (skipped); so is a row
+    whose scene is its own reference (its relative values vanish by definition). Errors
+    name the file, the line and the column."""
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"measurements: no such file {str(path)!r}")
@@ -412,57 +426,106 @@ def read_table(path, table_map: TableMap) -> list[Observation]:
                              f"{q.column!r} (choose from {', '.join(QUANTITIES)})")
         if not (np.isfinite(q.scale) and np.isfinite(q.std) and q.std > 0):
             raise ValueError(f"table map: column {q.column!r} needs a finite scale and std > 0")
+    if table_map.zero_within is not None and table_map.reference is None:
+        raise ValueError("table map: zero_within needs a reference template (the run's row "
+                         "whose scene is its reference is the zero)")
     with path.open(newline="") as handle:
         reader = csv.DictReader(handle)
         header = reader.fieldnames or []
-        needed = [q.column for q in table_map.quantities] + list(table_map.where)
-        missing = [c for c in needed if c not in header]
+        needed = ([q.column for q in table_map.quantities] + list(table_map.where)
+                  + [c for q in table_map.quantities for c in q.where])
+        missing = [c for c in dict.fromkeys(needed) if c not in header]
         if missing:
             raise ValueError(f"measurements: {path.name} lacks column(s) {missing} (the table "
                              f"map reads them; columns: {header})")
-        rows = []
-        for line, row in enumerate(reader, start=2):
-            cells = {k: _Cell((v or "").strip()) for k, v in row.items() if k is not None}
-            if not all(any(_same(cells[c], v) for v in values)
-                       for c, values in table_map.where.items()):
+        table = [(line, row, {k: _Cell((v or "").strip()) for k, v in row.items()
+                              if k is not None})
+                 for line, row in enumerate(reader, start=2)]
+
+    def names(line, cells):
+        return (_fill(path, line, table_map.scene, cells, "scene"),
+                None if table_map.reference is None else
+                _fill(path, line, table_map.reference, cells, "reference"))
+
+    def measured(line, row, cells, q):
+        return (_number(path, line, row, q.column, default=None)
+                if _matches(cells, q.where) else None)
+
+    zeros = {}            # (run, quantity index): (line, the run's unloaded reading)
+    if table_map.zero_within is not None:      # every row: a filter may drop the zero's
+        for line, row, cells in table:
+            scene, reference = names(line, cells)
+            if scene != reference:
                 continue
-            scene = _fill(path, line, table_map.scene, cells, "scene")
-            reference = (None if table_map.reference is None else
-                         _fill(path, line, table_map.reference, cells, "reference"))
-            if scene == reference:
+            run = _fill(path, line, table_map.zero_within, cells, "zero_within")
+            for i, q in enumerate(table_map.quantities):
+                value = measured(line, row, cells, q)
+                if value is None:
+                    continue
+                if (run, i) in zeros:
+                    _fail(path, line, q.column, f"run {run!r} has a second unloaded reading "
+                          f"for {q.quantity} (first on line {zeros[run, i][0]})")
+                zeros[run, i] = (line, value)
+    rows = []
+    for line, row, cells in table:
+        if not _matches(cells, table_map.where):
+            continue
+        scene, reference = names(line, cells)
+        if scene == reference:
+            continue
+        for i, q in enumerate(table_map.quantities):
+            value = measured(line, row, cells, q)
+            if value is None:
                 continue
-            for q in table_map.quantities:
-                value = _number(path, line, row, q.column, default=None)
-                if value is not None:
-                    rows.append(Observation(line, scene, table_map.rod, table_map.node,
-                                            tuple(map(float, q.offset)), q.quantity,
-                                            value * q.scale, float(q.std), reference,
-                                            {k: str(v) for k, v in cells.items()}))
+            if table_map.zero_within is not None:
+                run = _fill(path, line, table_map.zero_within, cells, "zero_within")
+                if (run, i) not in zeros:
+                    _fail(path, line, q.column, f"run {run!r} has no unloaded reading of "
+                          f"{q.quantity} (a row whose scene is its reference "
+                          f"{reference!r}) to subtract")
+                value -= zeros[run, i][1]
+            rows.append(Observation(line, scene, table_map.rod, table_map.node,
+                                    tuple(map(float, q.offset)), q.quantity,
+                                    value * q.scale, float(q.std), reference,
+                                    {k: str(v) for k, v in cells.items()}))
     if not rows:
         raise ValueError(f"measurements: {path.name} gives no measured value through the "
                          f"table map (filter {dict(table_map.where)})")
     return rows
 
 
-TABLE_MAPS = {"pazy-tip-sweep": ("real", "pazy_wing_technion", "tip_mass_sweep_map.toml")}
+TABLE_MAPS = {
+    "pazy-tip-sweep": ("real", "pazy_wing_technion", "tip_mass_sweep_map.toml"),
+    "prepazy-tip-sweep": ("real", "prepazy_wing_technion", "tip_mass_sweep_map.toml"),
+    "minguet-strips": ("real", "minguet_dugundji_composite_cantilever",
+                       "displacements_at_x500mm_map.toml"),
+    "tdcr-tip-height": ("real", "tdcr_isir_nouredeen", "tip_z_vs_tendon_pull_map.toml"),
+}
 
 
 def load_table_map(source, where: dict | None = None) -> TableMap:
-    """A :class:`TableMap` from a TOML file, or a shipped one by name
-    (:data:`TABLE_MAPS`: ``"pazy-tip-sweep"``); ``where`` adds row filters. The file::
+    """A :class:`TableMap` from a TOML file, or a shipped one by name (:data:`TABLE_MAPS`:
+    ``"pazy-tip-sweep"``, ``"prepazy-tip-sweep"``, ``"minguet-strips"``,
+    ``"tdcr-tip-height"``; each file's comments name the scenes it expects); ``where``
+    adds row filters. The file::
 
         scene = "{test}_skin{skin}_{tip_mass_kg:.1f}kg"   # required template
         reference = "{test}_skin{skin}_0.0kg"             # optional template
         rod = "wing"                                       # required
         node = -1                                          # required
+        zero_within = "{test}_{skin}_{load_sequence}"      # optional: the table is not
+                                        # zeroed; subtract each run's row whose scene is
+                                        # its reference (the unloaded reading)
         [where]                                            # optional filters
         test = ["bending"]
         [[quantities]]                                     # one per measured column
         column = "tip_uz_m"
         quantity = "uz"
-        scale = 1.0                    # optional: to SI (m, rad)
+        scale = 1.0                    # optional: to SI (m, rad); -1 for a column of -u
         std = 0.0005                   # optional (SI)
         offset = [0.0, -0.006, 0.0]    # optional (m, section frame)
+        where = { component = ["u3"] } # optional: only rows whose cells match (a long
+                                       # table: one value column, a column naming it)
 
     Errors name the file and the key."""
     import tomllib
@@ -474,13 +537,17 @@ def load_table_map(source, where: dict | None = None) -> TableMap:
         raise ValueError(f"table map: cannot read {source} ({err}; shipped maps: "
                          f"{', '.join(TABLE_MAPS)})") from None
     where_from = f"table map: {path.name}"
-    unknown = set(data) - {"scene", "reference", "rod", "node", "where", "quantities"}
+    allowed = ("scene", "reference", "rod", "node", "zero_within", "where", "quantities")
+    unknown = set(data) - set(allowed)
     if unknown:
-        raise ValueError(f"{where_from}: unknown key {sorted(unknown)[0]!r} (allowed: scene, "
-                         "reference, rod, node, where, quantities)")
+        raise ValueError(f"{where_from}: unknown key {sorted(unknown)[0]!r} (allowed: "
+                         f"{', '.join(allowed)})")
     for key, kind in (("scene", str), ("rod", str), ("node", int)):
         if not isinstance(data.get(key), kind):
             raise ValueError(f"{where_from}: {key} must be a {kind.__name__}")
+    for key in ("reference", "zero_within"):
+        if not isinstance(data.get(key, ""), str):
+            raise ValueError(f"{where_from}: {key} must be a string (a template)")
     items = data.get("quantities")
     if not isinstance(items, list) or not items:
         raise ValueError(f"{where_from}: give at least one [[quantities]] (column, quantity)")
@@ -489,14 +556,22 @@ def load_table_map(source, where: dict | None = None) -> TableMap:
         extra = set(item) - set(QuantityColumn._fields)
         if extra or not {"column", "quantity"} <= set(item):
             raise ValueError(f"{where_from}: quantities[{i}] needs column and quantity "
-                             f"(optional scale, std, offset); got {sorted(item)}")
+                             f"(optional scale, std, offset, where); got {sorted(item)}")
         offset = item.get("offset", [0.0, 0.0, 0.0])
         if not isinstance(offset, list) or len(offset) != 3:
             raise ValueError(f"{where_from}: quantities[{i}].offset must be [x, y, z]")
         quantities.append(QuantityColumn(item["column"], item["quantity"],
                                          float(item.get("scale", 1.0)),
-                                         float(item.get("std", 1.0)), tuple(offset)))
-    filters = {k: tuple(v) if isinstance(v, (list, tuple)) else (v,)
-               for k, v in {**data.get("where", {}), **(where or {})}.items()}
+                                         float(item.get("std", 1.0)), tuple(offset),
+                                         _filters(item.get("where", {}), where_from,
+                                                  f"quantities[{i}].where")))
+    filters = _filters({**data.get("where", {}), **(where or {})}, where_from, "where")
     return TableMap(data["scene"], data["rod"], data["node"], tuple(quantities),
-                    data.get("reference"), filters)
+                    data.get("reference"), filters, data.get("zero_within"))
+
+
+def _filters(table, where_from: str, key: str) -> dict:
+    """``{column: (values...)}`` from a TOML table of a value or a list per column."""
+    if not isinstance(table, dict):
+        raise ValueError(f"{where_from}: {key} must be a table {{column = [values]}}")
+    return {k: tuple(v) if isinstance(v, (list, tuple)) else (v,) for k, v in table.items()}
