@@ -42,16 +42,12 @@ def solve_static_checked(model: Model, settings, check):
     equilibrium with the count packed into one vector (:func:`~simsoft_jax.packing.pack`
     of ``(eq without R and p, count)``, :func:`static_layout`): three copies to the host
     instead of a dozen. (Packing the frames as well made the whole solve ~10 % slower:
-    the loops then keep them in XLA's temporary buffers.) Structures with rod-rod contact
-    are never checked: the count reads the chains' tangent, which lacks it."""
+    the loops then keep them in XLA's temporary buffers.)"""
     eq = equilibrium(model, settings, keep_tangent=True)
     tangent, eq = eq.tangent, eq._replace(tangent=None)
-    if model.structure.self_contact:
-        count = jnp.array(-1)
-    else:
-        count = jax.lax.cond(check & eq.converged,
-                             lambda: negative_eigenvalues(model, eq, tangent).astype(int),
-                             lambda: jnp.array(-1))
+    count = jax.lax.cond(check & eq.converged,
+                         lambda: negative_eigenvalues(model, eq, tangent).astype(int),
+                         lambda: jnp.array(-1))
     return eq.R, eq.p, pack((eq._replace(R=None, p=None), count))
 
 

@@ -30,7 +30,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from . import mechanisms
+from . import coupling, mechanisms
 from .assembly import residual_and_tangent
 from .linalg import factorize, positive_definite, solve_factored
 from .loads import full_loads
@@ -77,18 +77,66 @@ def negative_eigenvalues(model: Model, eq, tangent=None) -> jax.Array:
     or friction (the Newton tangent with friction holds its stick terms, which this count
     leaves out); assembled here otherwise. Pure: jit- and vmap-able."""
     s = model.structure
-    if tangent is not None and not (s.joints or s.has_friction):
+    if tangent is not None and not (coupling.present(s) or s.has_friction):
         return count_negative_pivots(*symmetric_blocks(tangent))
     loaded = full_loads(model)
     r, blocks = residual_and_tangent(loaded, eq.R, eq.p, 1.0)
-    if not s.joints:
+    if not coupling.present(s):
         return count_negative_pivots(*symmetric_blocks(blocks))
-    system = mechanisms.couple(loaded, eq.R, eq.p, eq.multipliers, r, blocks)
+    y = eq.multipliers if eq.multipliers is not None else jnp.zeros(0)
+    system = coupling.couple(loaded, eq.R, eq.p, y, r, blocks)
+    m_joints = mechanisms.coupling_count(s) if s.joints else 0
+    return bordered_count(system, m_joints) - mechanisms.multiplier_count(s)
+
+
+def bordered_count(system: coupling.Coupled, m_joints: int):
+    """Negative eigenvalues of the symmetric part of the bordered tangent
+    ``[[K, B], [C, D]]`` of :func:`simsoft_jax.coupling.couple` (int): the joints' first
+    ``m_joints`` border unknowns are unknowns of the tangent (their count adds by
+    Haynsworth's inertia additivity over the chains' pivots and the Schur complement
+    ``S = D - C K^-1 B``); the rod-rod contact's border after them stands for the term
+    ``U W U^T`` of the tangent (``B = U``, ``C = W U^T``, ``D = -I``: :mod:`simsoft_jax.rod_pairs`).
+
+    For the contact part, with the symmetric ``W = V diag(lam) V^T`` and its nonzero
+    modes ``lam`` (the zero ones add nothing), the matrix ``P = [[A, U V], [V^T U^T,
+    -diag(1/lam)]]`` (A: the tangent without the contact's cross term) has the tangent
+    ``A + U W U^T`` as Schur complement of its second block, so (Haynsworth, twice)
+    ``neg(A + U W U^T) = neg(A) + neg(-diag(1/lam) - V^T U^T A^-1 U V) -
+    neg(-diag(1/lam))``. A zero mode gets -1 on both sides, which cancels. Needs the
+    chains' symmetric tangent nonsingular (a held rod's is)."""
     diag, lower = symmetric_blocks(system.blocks)
-    B = 0.5 * (system.B + jnp.transpose(system.C, (1, 2, 0)))
     chain = factorize((diag, jnp.swapaxes(lower, -1, -2), lower))
-    schur = 0.5 * (system.D + system.D.T) - jnp.einsum("nja,njb->ab", B,
-                                                        solve_factored(chain, B))
-    schur = 0.5 * (schur + schur.T)
-    return (count_negative_pivots(diag, lower) + jnp.sum(jnp.linalg.eigvalsh(schur) < 0.0)
-            - mechanisms.multiplier_count(model.structure))
+    m = system.D.shape[0]
+    # the tangent's own border: the joints' coupling unknowns
+    B = 0.5 * (system.B[..., :m_joints] + jnp.transpose(system.C[:m_joints], (1, 2, 0)))
+    D = 0.5 * (system.D[:m_joints, :m_joints] + system.D[:m_joints, :m_joints].T)
+    count = count_negative_pivots(diag, lower)
+    if m == m_joints:                     # joints only
+        schur = D - jnp.einsum("nja,njb->ab", B, solve_factored(chain, B))
+        return count + jnp.sum(jnp.linalg.eigvalsh(0.5 * (schur + schur.T)) < 0.0)
+    # the contact's cross term U W U^T: U its unit columns on the chains and the joints'
+    # coupling unknowns, W from C = W U^T (C's columns at U's dofs)
+    U = system.B[..., m_joints:]                                     # (N,6,mc)
+    U_z = system.D[:m_joints, m_joints:]                             # (mj,mc)
+    W = (jnp.einsum("anj,njb->ab", system.C[m_joints:], U)
+         + system.D[m_joints:, :m_joints] @ U_z)
+    lam, V = jnp.linalg.eigh(0.5 * (W + W.T))
+    nonzero = jnp.abs(lam) > 1e-12 * jnp.maximum(jnp.max(jnp.abs(lam)), 1e-300)
+    UV, UV_z = jnp.einsum("njb,bk->njk", U, V), U_z @ V
+    # A^-1 (U V) on the tangent without the contact's cross term: the chains bordered by
+    # the joints' coupling unknowns (none: the chains)
+    if m_joints:
+        schur = D - jnp.einsum("nja,njb->ab", B, solve_factored(chain, B))
+        count = count + jnp.sum(jnp.linalg.eigvalsh(0.5 * (schur + schur.T)) < 0.0)
+        KinvB, KinvUV = solve_factored(chain, B), solve_factored(chain, UV)
+        z = jnp.linalg.solve(schur, UV_z - jnp.einsum("nja,njk->ak", B, KinvUV))
+        x = KinvUV - jnp.einsum("nja,ak->njk", KinvB, z)
+        G = jnp.einsum("njk,njl->kl", UV, x) + UV_z.T @ z
+    else:
+        G = jnp.einsum("njk,njl->kl", UV, solve_factored(chain, UV))
+    inverse = jnp.where(nonzero, 1.0 / jnp.where(nonzero, lam, 1.0), 0.0)
+    keep = nonzero[:, None] & nonzero[None, :]
+    S = jnp.where(keep, -jnp.diag(inverse) - 0.5 * (G + G.T), 0.0) + jnp.diag(
+        jnp.where(nonzero, 0.0, -1.0))
+    return (count + jnp.sum(jnp.linalg.eigvalsh(S) < 0.0)
+            - jnp.sum(jnp.where(nonzero, -inverse, -1.0) < 0.0))

@@ -162,3 +162,59 @@ def test_welded_cantilever_on_a_rod_equals_one_rod(kind):
         tip = ref[..., -1, 2] - ref[..., 0, 2]
         free_tip = -2.0 * L_TOP ** 3 / 3.0      # the free cantilever's F L^3 / 3 EI
         assert tip > 0.5 * free_tip             # the contact carries part of the load
+
+
+# ------------------------------------------------ stability count of the coupled tangent
+
+def _dense_contact_count(model, R, p):
+    """Negative eigenvalues of the symmetric part of the whole constrained tangent with
+    the rod-rod contact, assembled densely here (chains + U W U^T), and its smallest
+    eigenvalue magnitude."""
+    from simsoft_jax import linalg, rod_pairs
+    from simsoft_jax.assembly import residual_and_tangent
+    from simsoft_jax.loads import full_loads
+
+    loaded = full_loads(model)
+    r, blocks = residual_and_tangent(loaded, R, p, 1.0)
+    _, blocks, c = rod_pairs.system(loaded, R, p, r, blocks)
+    n = R.shape[0]
+    U = np.asarray(c.B).reshape(6 * n, -1)
+    W = np.einsum("anj,njb->ab", np.asarray(c.C), np.asarray(c.B))
+    K = np.asarray(linalg.dense(blocks)) + U @ W @ U.T
+    eigenvalues = np.linalg.eigvalsh(0.5 * (K + K.T))
+    return int(np.sum(eigenvalues < 0.0)), float(np.abs(eigenvalues).min())
+
+
+def test_stability_count_with_rod_contact_equals_the_dense_count():
+    """The count through the bordered system (stable crossing: 0) and, with a softening
+    that makes the rods' tangent indefinite, the same count as the dense tangent."""
+    from simsoft_jax.stability import negative_eigenvalues
+
+    scene = sj.Scene.from_dict(cantilever_on_a_rod(False))
+    result = sj.run(scene)
+    assert result.converged and result.stability["negative_eigenvalues"] == 0
+    model, eq = result.model, result.raw
+    assert _dense_contact_count(model, eq.R, eq.p)[0] == 0
+    for factor in (-0.2, -0.5):
+        soft = model.replace(stiffness=np.asarray(model.stiffness) * np.where(
+            np.arange(model.stiffness.shape[0])[:, None] % 3 == 1, factor, 1.0))
+        dense, smallest = _dense_contact_count(soft, eq.R, eq.p)
+        assert dense > 0 and smallest > 1e-6      # no eigenvalue near zero: a sharp count
+        assert int(negative_eigenvalues(soft, eq)) == dense
+
+
+def test_stability_count_with_contact_and_a_weld_equals_one_rod():
+    """Joints and rod-rod contact together: the welded pair counts as the one rod, for a
+    stable equilibrium and for an indefinite (softened) tangent."""
+    from simsoft_jax.stability import negative_eigenvalues
+
+    pair = sj.run(sj.Scene.from_dict(cantilever_on_a_rod(True)))
+    one = sj.run(sj.Scene.from_dict(cantilever_on_a_rod(False)))
+    assert pair.stability["negative_eigenvalues"] == one.stability["negative_eigenvalues"] == 0
+    for model, result in ((pair.model, pair), (one.model, one)):
+        assert result.converged
+    soft = lambda m: m.replace(stiffness=np.asarray(m.stiffness) * np.where(  # noqa: E731
+        np.arange(m.stiffness.shape[0])[:, None] == 1, -0.5, 1.0))
+    count_pair = int(negative_eigenvalues(soft(pair.model), pair.raw))
+    count_one = int(negative_eigenvalues(soft(one.model), one.raw))
+    assert count_one > 0 and count_pair == count_one
