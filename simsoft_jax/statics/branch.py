@@ -36,9 +36,11 @@ _INVERSE_ITERATIONS = 8
 _SIDE_THRESHOLD = 1e-6
 
 
-def watched(structure) -> bool:
-    """Whether the continuation of a model of this structure watches stability."""
-    return not (structure.joints or structure.has_friction or structure.self_contact)
+def watched(model) -> bool:
+    """Whether the continuation of ``model`` watches stability (not with joints, friction
+    or self contact)."""
+    s = model.structure
+    return not (s.joints or model.obstacle_friction is not None or s.self_contact)
 
 
 def stable(tangent) -> jax.Array:
