@@ -21,14 +21,14 @@ from .parts import WHAT
 
 
 
-def _leaf(tree, path: str):
+def _leaf(tree, path: str, label: str = "actuators"):
     for name in path.split("."):
         if not hasattr(tree, name):
             raise ValueError(f"actuators: the model has no array {path!r}")
         tree = getattr(tree, name)
         if tree is None:
             what = WHAT.get(name, name)
-            raise ValueError(f"actuators: this model was built without {what} ({path!r} is "
+            raise ValueError(f"{label}: this model was built without {what} ({path!r} is "
                              f"None), so the solvers would not read it; build it from a "
                              f"scene that has {what} (a zero load of that kind will do)")
     if not isinstance(tree, (jax.Array, np.ndarray)):
@@ -67,7 +67,7 @@ def leaf_actuation(model: Model, actuators: Sequence[tuple]):
         if not (isinstance(entry, (tuple, list)) and len(entry) == 2):
             raise ValueError(f"actuators[{j}]: expected (path, index), got {entry!r}")
         path, index = entry
-        shape = _leaf(model, path).shape
+        shape = _leaf(model, path, f"actuators[{j}]").shape
         hits = np.zeros(shape, bool)
         try:
             hits[index] = True
