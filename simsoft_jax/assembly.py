@@ -196,10 +196,10 @@ def element_data(model: Model, maps=None, masses=None) -> ElementData:
     :func:`~simsoft_jax.terms.registry.section_inertia`)."""
     n = model.length.shape[0]
     inertia = model.inertia if maps is None else registry.section_inertia(model)
+    gravity = None if model.gravity is None else jnp.broadcast_to(model.gravity, (n, 3))
     return ElementData(model.d0, model.length, model.stiffness, inertia,
                        model.viscosity, model.distributed_world, model.distributed_local,
-                       None if model.gravity is None else jnp.broadcast_to(model.gravity, (n, 3)),
-                       maps, masses,
+                       gravity, maps, masses,
                        model.mass_damping, contact=contact_data(model),
                        parts=registry.element_parts(model))
 
@@ -310,7 +310,6 @@ def nodal_load_and_tangent(model: Model, lam, R, tangent: str = "closed_form"):
     with ``a = R^T F`` (dead force or moment), ``(R exp(theta))^T F = a + skew(a) theta``,
     so the rotation columns hold ``-lam skew(R^T F)``, ``-lam skew(R^T M)``; follower loads
     do not depend on the frame. ``tangent="autodiff"``: ``jax.jacfwd`` of the node terms."""
-    s = model.structure
     if tangent == "autodiff":
         return jax.vmap(term_tangents.node_tangent(lam))(R, model.nodal_dead,
                                                             model.nodal_follower)
@@ -485,7 +484,6 @@ def node_blocks(model: Model, lam, R, v=None, vd=None, dynamic: bool = False,
     and of the attached masses and offset loads (:func:`attachments_and_tangents`); C and
     M None where no node term reads velocities or accelerations (statics, nodal loads
     only); None when the scene has no node term."""
-    s = model.structure
     loads = (nodal_load_and_tangent(model, lam, R, tangent)
              if model.nodal_dead is not None or model.nodal_follower is not None else None)
     attached = attachments_and_tangents(model, lam, R, v, vd, dynamic)

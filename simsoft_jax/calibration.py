@@ -229,12 +229,13 @@ def static_residual_fn(targets: Sequence[StaticTarget], names: Sequence[str],
                        settings: StaticSettings = StaticSettings()):
     """``x -> (r, ok)``: simulated minus measured components (m), target by target.
 
-    Targets that share a model structure are solved in one vmapped call (one compile
-    per structure); measurement rows are padded within a group and masked out.
+    Targets that share a model structure (the Structure and which optional parts are
+    None: the pytree structure) are solved in one vmapped call (one compile per
+    structure); measurement rows are padded within a group and masked out.
     """
     groups: dict = {}
     for t in targets:
-        groups.setdefault(t.model.structure, []).append(t)
+        groups.setdefault(jax.tree_util.tree_structure(t.model), []).append(t)
     packed = []
     for members in groups.values():
         rows = max(len(t.nodes) for t in members)

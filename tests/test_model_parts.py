@@ -62,3 +62,26 @@ def test_tip_deflection_gradient_in_gravity_matches_the_closed_form():
     assert float(sag) == pytest.approx(-G * per_g, rel=5e-4)
     assert float(grad[2]) == pytest.approx(per_g, rel=5e-4)
     assert abs(float(grad[1])) < 1e-6 * per_g        # a sideways g does not lift the tip
+
+
+def test_which_parts_are_present_is_part_of_the_pytree_structure():
+    """A world-frame and a follower tip force give equal Structures and leaves of equal
+    shapes; only the None parts tell the models apart, and they are part of the pytree
+    structure, which keys every compiled program (jit, ``compile_key``, the persistent
+    cache), so the two never share one."""
+    def tip_force(frame):
+        return sj.build_model(sj.Scene.from_dict({
+            "solver": {"kind": "static"},
+            "rods": [{"name": "r", "elements": 2, "geometry": {"kind": "straight", "length": L},
+                      "stiffness": dict(EA=1e9, GAy=1e9, GAz=1e9, GJ=EI, EIy=EI, EIz=EI),
+                      "inertia": dict(rhoA=RHOA, rhoJ=1e-6, rhoIy=1e-6, rhoIz=1e-6)}],
+            "constraints": [{"kind": "clamp", "rod": "r", "node": 0}],
+            "loads": [{"kind": "force", "rod": "r", "node": -1, "vector": [0.0, 0.0, 1.0],
+                       "frame": frame}]}))
+
+    dead, follower = tip_force("world"), tip_force("local")
+    assert dead.nodal_follower is None and follower.nodal_dead is None
+    assert dead.structure == follower.structure
+    assert ([np.shape(x) for x in jax.tree_util.tree_leaves(dead)]
+            == [np.shape(x) for x in jax.tree_util.tree_leaves(follower)])
+    assert jax.tree_util.tree_structure(dead) != jax.tree_util.tree_structure(follower)
