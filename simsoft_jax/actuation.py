@@ -17,20 +17,20 @@ import jax
 import numpy as np
 
 from .model import Model
-
-# Model arrays that solvers read only when the structure traces that kind of load
-_FLAGS = {"nodal_dead": "has_nodal_dead", "nodal_follower": "has_nodal_follower",
-          "distributed_world": "has_distributed_world",
-          "distributed_local": "has_distributed_local",
-          "element_point_dead": "has_point_dead", "element_point_follower": "has_point_follower",
-          "gravity": "has_gravity"}
+from .parts import WHAT
 
 
-def _leaf(tree, path: str):
+
+def _leaf(tree, path: str, label: str = "actuators"):
     for name in path.split("."):
         if not hasattr(tree, name):
             raise ValueError(f"actuators: the model has no array {path!r}")
         tree = getattr(tree, name)
+        if tree is None:
+            what = WHAT.get(name, name)
+            raise ValueError(f"{label}: this model was built without {what} ({path!r} is "
+                             f"None), so the solvers would not read it; build it from a "
+                             f"scene that has {what} (a zero load of that kind will do)")
     if not isinstance(tree, (jax.Array, np.ndarray)):
         raise ValueError(f"actuators: {path!r} is not an array of the model")
     return tree
@@ -56,8 +56,9 @@ def leaf_actuation(model: Model, actuators: Sequence[tuple]):
     frame in statics, and the implicit gradient carries its derivative).
 
     Raises ValueError naming ``actuators`` for an unknown array, an index outside it, an
-    actuator selecting nothing, two actuators writing the same entry, or a load kind the
-    model's structure does not trace (build the scene with a zero load of that kind).
+    actuator selecting nothing, two actuators writing the same entry, or a part the
+    model was built without (None, :mod:`simsoft_jax.parts`: build the scene with a zero
+    load of that kind).
     """
     if not actuators:
         raise ValueError("actuators: name at least one actuator")
@@ -66,7 +67,7 @@ def leaf_actuation(model: Model, actuators: Sequence[tuple]):
         if not (isinstance(entry, (tuple, list)) and len(entry) == 2):
             raise ValueError(f"actuators[{j}]: expected (path, index), got {entry!r}")
         path, index = entry
-        shape = _leaf(model, path).shape
+        shape = _leaf(model, path, f"actuators[{j}]").shape
         hits = np.zeros(shape, bool)
         try:
             hits[index] = True
@@ -79,11 +80,6 @@ def leaf_actuation(model: Model, actuators: Sequence[tuple]):
             raise ValueError(f"actuators[{j}]: writes entries of {path!r} another actuator "
                              "already writes")
         written[path] = written.get(path, np.zeros(shape, bool)) | hits
-        flag = _FLAGS.get(path.split(".")[-1])
-        if flag and not getattr(model.structure, flag):
-            raise ValueError(f"actuators[{j}]: the model's structure has no {path!r} loads "
-                             f"({flag} is False), so the solvers would ignore them; add a "
-                             "zero load of that kind to the scene")
     entries = tuple((path, index) for path, index in actuators)
 
     def actuate(m: Model, u) -> Model:

@@ -51,17 +51,19 @@ def dead_distributed_force(model: Model, lam):
     """``-lam (q_world + rho_a g)`` (3,) per element as a function of ``(rho_a, q_world)``:
     the dead force per unit length (N/m) of gravity and world-frame distributed loads on
     the residual side, or None when the scene has neither (then nothing of it is traced)."""
-    s = model.structure
-    if not (s.has_gravity or s.has_distributed_world):
-        return None
-    return lambda rho_a, q_world: -lam * (q_world + rho_a * model.gravity)
+    g = model.gravity
+    if model.distributed_world is None:
+        return None if g is None else lambda rho_a, q_world: -lam * (rho_a * g)
+    if g is None:
+        return lambda rho_a, q_world: -lam * q_world
+    return lambda rho_a, q_world: -lam * (q_world + rho_a * g)
 
 
 def follower_distributed_load(model: Model, lam):
     """``-lam f_local`` (12,) of one element's follower distributed load as a function of
     ``(d, P, length, q_local)`` (:func:`element.follower_distributed_force`), or None when
     the scene has none."""
-    if not model.structure.has_distributed_local:
+    if model.distributed_local is None:
         return None
     return lambda d, P, length, q_local: -lam * element.follower_distributed_force(
         d, P, length, q_local)
@@ -117,7 +119,7 @@ def contact_and_tangent(model: Model, R, p, v=None):
     s = model.structure
     if not s.obstacle_kinds:
         return None
-    friction = v is not None and s.has_friction
+    friction = v is not None and model.obstacle_friction is not None
     a = jnp.asarray(s.element_nodes)
     ve = (jnp.concatenate([v[a], v[a + 1]], axis=1) if friction
           else jnp.zeros((s.n_elements, 12), p.dtype))
@@ -195,9 +197,10 @@ def element_data(model: Model, maps=None, masses=None) -> ElementData:
     :func:`~simsoft_jax.terms.registry.section_inertia`)."""
     n = model.length.shape[0]
     inertia = model.inertia if maps is None else registry.section_inertia(model)
+    gravity = None if model.gravity is None else jnp.broadcast_to(model.gravity, (n, 3))
     return ElementData(model.d0, model.length, model.stiffness, inertia,
                        model.viscosity, model.distributed_world, model.distributed_local,
-                       jnp.broadcast_to(model.gravity, (n, 3)), maps, masses,
+                       gravity, maps, masses,
                        model.mass_damping, contact=contact_data(model),
                        parts=registry.element_parts(model))
 
@@ -231,8 +234,9 @@ def contact_data(model: Model):
         return jnp.broadcast_to(a, (n,) + jnp.shape(a))
 
     ends = rod_end_flags(model.structure)
+    friction = None if model.obstacle_friction is None else each(model.obstacle_friction)
     return contact.ContactData(model.contact_radius, model.contact_stiffness,
-                               each(model.obstacles), each(model.obstacle_friction),
+                               each(model.obstacles), friction,
                                each(model.slip_velocity), each(model.obstacle_velocity),
                                jnp.asarray(ends) * model.contact_radius[:, None])
 
@@ -245,7 +249,7 @@ def static_friction_and_tangent(model: Model, R, p, previous, tangent: bool = Tr
     (R (N,3,3), p (N,3)) the frames there. None when the structure has no friction or
     ``previous`` is None."""
     s = model.structure
-    if previous is None or not s.has_friction:
+    if previous is None or model.obstacle_friction is None:
         return None
     RA0, pA0, RB0, pB0 = element_poses(model, *previous)
     d0 = jax.vmap(element.relative_twist)(RA0, pA0, RB0, pB0)
@@ -279,7 +283,7 @@ def element_poses(model: Model, R, p):
 
 def _nodal_load(model: Model, lam):
     """``-lam f_ext`` at one node (:mod:`simsoft_jax.terms.nodal`; spec S43)."""
-    return term_tangents.node_residual(model.structure, lam)
+    return term_tangents.node_residual(lam)
 
 
 def _placed(n_rows, rows, x):
@@ -314,13 +318,12 @@ def nodal_load_and_tangent(model: Model, lam, R, tangent: str = "closed_form"):
     with ``a = R^T F`` (dead force or moment), ``(R exp(theta))^T F = a + skew(a) theta``,
     so the rotation columns hold ``-lam skew(R^T F)``, ``-lam skew(R^T M)``; follower loads
     do not depend on the frame. ``tangent="autodiff"``: ``jax.jacfwd`` of the node terms."""
-    s = model.structure
     if tangent == "autodiff":
-        return jax.vmap(term_tangents.node_tangent(s, lam))(R, model.nodal_dead,
+        return jax.vmap(term_tangents.node_tangent(lam))(R, model.nodal_dead,
                                                             model.nodal_follower)
     r = jax.vmap(_nodal_load(model, lam))(R, model.nodal_dead, model.nodal_follower)
     k = jnp.zeros(R.shape[:1] + (6, 6), R.dtype)
-    if s.has_nodal_dead:
+    if model.nodal_dead is not None:
         local = jnp.einsum("nji,nkj->nki", R, model.nodal_dead.reshape(-1, 2, 3))
         skews = jax.vmap(jax.vmap(lie.skew))(local)                     # (N, 2, 3, 3)
         k = k.at[:, :3, 3:].set(-lam * skews[:, 0]).at[:, 3:, 3:].set(-lam * skews[:, 1])
@@ -336,7 +339,7 @@ def attachments_and_tangents(model: Model, lam, R, v=None, vd=None, dynamic: boo
     statics), all by ``jax.jacfwd`` on both tangent paths. None when the scene has
     neither. ``v, vd`` (N,6): nodal body velocities and accelerations (dynamics)."""
     s = model.structure
-    with_gravity = s.has_gravity
+    with_gravity = model.gravity is not None
     weighs = with_gravity or dynamic
     if not (s.offset_load_nodes or (s.mass_nodes and weighs)):
         return None
@@ -425,12 +428,12 @@ def _dynamic_kernel(model: Model, lam):
         gyro = lambda u: inertia.gyroscopic_force(  # noqa: E731
             maps, length, inert, u, s.inertia_kind, mass)
         C, g = jax.jacfwd(lambda u: (gyro(u),) * 2, has_aux=True)(ve)
-        if s.has_viscosity:
+        if visc is not None:
             rate = lambda dd: element.strain_map(dd) @ ve / length  # noqa: E731
             stress = stress + visc * rate(d)
             stress_jac = stress_jac + visc[:, None] * jax.jacfwd(rate)(d)
             C = C + P.T @ (visc[:, None] * P) / length
-        if s.has_mass_damping:  # c M_e v_e: M_e is fixed by the reference shape, so C only
+        if c_mass is not None:  # c M_e v_e: M_e is fixed by the reference shape, so C only
             g, C = g + c_mass * (mass @ ve), C + c_mass * mass
         f, K = element_force_and_tangent(P, d, stress, stress_jac, RA, length, dead, follower,
                                          inertia.line_density(inert), qw, ql)
@@ -489,9 +492,8 @@ def node_blocks(model: Model, lam, R, v=None, vd=None, dynamic: bool = False,
     and of the attached masses and offset loads (:func:`attachments_and_tangents`); C and
     M None where no node term reads velocities or accelerations (statics, nodal loads
     only); None when the scene has no node term."""
-    s = model.structure
     loads = (nodal_load_and_tangent(model, lam, R, tangent)
-             if s.has_nodal_dead or s.has_nodal_follower else None)
+             if model.nodal_dead is not None or model.nodal_follower is not None else None)
     attached = attachments_and_tangents(model, lam, R, v, vd, dynamic)
     if loads is None and attached is None:
         return None
@@ -524,7 +526,7 @@ def residual_vector(model: Model, lam, R, p, v=None, vd=None, inert=None, previo
     if friction is not None:
         f_el = f_el + friction[0]
     r = assemble_vector(s.n_nodes, s.element_nodes, f_el)
-    if s.has_nodal_dead or s.has_nodal_follower:
+    if model.nodal_dead is not None or model.nodal_follower is not None:
         r = r + jax.vmap(_nodal_load(model, lam))(R, model.nodal_dead, model.nodal_follower)
     attached = attachments_and_tangents(model, lam, R, v, vd, dynamic)
     if attached is not None:

@@ -57,13 +57,20 @@ def check_parameters(names: Sequence[str] | str, dynamic: bool = False) -> tuple
 
 
 def apply_scales(model: Model, names: Sequence[str], log_scale) -> Model:
-    """``model`` with the columns of each parameter multiplied by ``exp(log_scale[j])``."""
+    """``model`` with the columns of each parameter multiplied by ``exp(log_scale[j])``.
+    A ValueError names a parameter of a part the model was built without (viscosity of a
+    scene without viscosity: :mod:`simsoft_jax.parts`)."""
     factors = {"stiffness": jnp.zeros(6), "viscosity": jnp.zeros(6)}
     for j, name in enumerate(names):
         field, columns = PARAMETERS[name]
+        if getattr(model, field) is None:
+            raise ValueError(f"params: {name!r}: the model was built without {field} "
+                             f"(build it from a scene whose materials have {field} > 0)")
         factors[field] = factors[field].at[jnp.array(columns)].add(log_scale[j])
-    return model.replace(stiffness=scale_stiffness(model.stiffness, jnp.exp(factors["stiffness"])),
-                         viscosity=model.viscosity * jnp.exp(factors["viscosity"]))
+    changes = {"stiffness": scale_stiffness(model.stiffness, jnp.exp(factors["stiffness"]))}
+    if model.viscosity is not None:
+        changes["viscosity"] = model.viscosity * jnp.exp(factors["viscosity"])
+    return model.replace(**changes)
 
 
 def scale_stiffness(stiffness, factors):
@@ -193,7 +200,7 @@ def _make_fit(names, model: Model, result) -> Fit:
     x, history, r, converged, steps, gnorm, covariance, J = result
     first = np.asarray(model.stiffness[0])
     nominal = {"stiffness": np.diag(first) if first.ndim == 2 else first,
-               "viscosity": np.asarray(model.viscosity[0])}
+               "viscosity": None if model.viscosity is None else np.asarray(model.viscosity[0])}
     scale = np.exp(x)
     std = scale * np.sqrt(np.maximum(np.diag(covariance), 0.0))
     values = {}
@@ -227,15 +234,15 @@ def static_residual_fn(targets: Sequence[StaticTarget], names: Sequence[str],
 
     Each target is solved with its own ``settings`` (its scene's ``[solver]`` table;
     the defaults when it has none), or with ``settings`` for all when given. Targets that
-    share a model structure and settings are solved in one vmapped call (one compile per
-    structure and integer settings); measurement rows are padded within a group and
-    masked out.
+    share a model structure (the Structure and which optional parts are None: the pytree
+    structure) and settings are solved in one vmapped call (one compile per structure
+    and integer settings); measurement rows are padded within a group and masked out.
     """
     groups: dict = {}
     for t in targets:
         own = settings if settings is not None else (
             t.settings if t.settings is not None else StaticSettings())
-        groups.setdefault((t.model.structure, own), []).append(t)
+        groups.setdefault((jax.tree_util.tree_structure(t.model), own), []).append(t)
     packed = []
     for members in groups.values():
         rows = max(len(t.nodes) for t in members)

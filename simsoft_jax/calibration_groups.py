@@ -225,7 +225,8 @@ def problem(obs: ObservationSet, groups: Sequence[Group],
     packs: dict = {}
     for i, model in enumerate(obs.models):
         own = obs.settings[i] if settings is None else settings
-        packs.setdefault((model.structure, own), []).append(i)
+        # the pytree structure: the Structure and which optional parts are None
+        packs.setdefault((jax.tree_util.tree_structure(model), own), []).append(i)
     order = np.array([i for idx in packs.values() for i in idx], int)
     sizes = np.array([obs.models[i].structure.n_nodes for i in order])
     start = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(int)
@@ -237,9 +238,9 @@ def problem(obs: ObservationSet, groups: Sequence[Group],
             "has_ref": has_ref, "kind": obs.kind, "component": obs.component,
             "offset": obs.offset, "value": obs.value, "std": obs.std}
     data = {"packs": tuple((_stack([obs.models[i] for i in idx]),
-                            jnp.asarray(element_masks(groups, structure)),
+                            jnp.asarray(element_masks(groups, obs.models[idx[0]].structure)),
                             as_traced(own))
-                           for (structure, own), idx in packs.items()),
+                           for (_, own), idx in packs.items()),
             "R0": jnp.concatenate([obs.models[i].R0 for i in order]),
             "p0": jnp.concatenate([obs.models[i].p0 for i in order]),
             "rows": {k: jnp.asarray(v) for k, v in rows.items()}}

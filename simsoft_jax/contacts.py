@@ -47,7 +47,7 @@ def _nodes_in_contact(structure, touching):
 
 def _at(model, t):
     """``model`` with its moving obstacles where they are at time ``t`` (s)."""
-    if not model.structure.moving_obstacles:
+    if model.obstacle_shift is None:
         return model
     return model.replace(obstacles=obstacles_at(model, t)[0])
 

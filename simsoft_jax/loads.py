@@ -18,6 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import obstacles
+from .parts import refuse_absent
 from .terms import registry
 
 
@@ -27,7 +28,8 @@ class LoadChannels:
     table_t, table_scale (K, S): padded tables. Patterns: nodal_dead (K,N,6) world,
     nodal_follower (K,N,6) local, distributed_world / distributed_local (K,E,3),
     element_point_dead / element_point_follower (K,E,6) point loads inside elements (at
-    the Model's ``element_point_xi``)."""
+    the Model's ``element_point_xi``); each None when the Model's array of that name is
+    (the scene has no load of that kind, :mod:`simsoft_jax.parts`)."""
     kinds: tuple
     params: jax.Array
     table_t: jax.Array
@@ -40,17 +42,20 @@ class LoadChannels:
     element_point_follower: jax.Array
 
     def replace(self, **changes) -> "LoadChannels":
-        """A copy with some arrays replaced (same kinds: no recompilation)."""
+        """A copy with some arrays replaced (same kinds: no recompilation); a pattern of
+        a load kind the model was built without (None) is refused, naming it
+        (:func:`~simsoft_jax.parts.refuse_absent`)."""
+        refuse_absent(self, changes)
         return dataclasses.replace(self, **changes)
 
 
+# The load arrays a channel carries a pattern of (Model fields of the same names).
+CHANNEL_PATTERNS = ("nodal_dead", "nodal_follower", "distributed_world", "distributed_local",
+                    "element_point_dead", "element_point_follower")
+
 jax.tree_util.register_dataclass(
-    LoadChannels,
-    data_fields=["params", "table_t", "table_scale", "nodal_dead", "nodal_follower",
-                 "distributed_world", "distributed_local", "element_point_dead",
-                 "element_point_follower"],
-    meta_fields=["kinds"],
-)
+    LoadChannels, data_fields=["params", "table_t", "table_scale", *CHANNEL_PATTERNS],
+    meta_fields=["kinds"])
 
 
 def profile_scale(kind: str, params, table_t, table_scale, t):
@@ -84,18 +89,14 @@ def scales(channels: LoadChannels, t):
 
 
 def _with_channels(model, s):
-    """``model`` with each channel's pattern times ``s`` (K,) added to its load arrays."""
+    """``model`` with each channel's pattern times ``s`` (K,) added to its load arrays
+    (those the model has)."""
     ch = model.channels
     if not ch.kinds:
         return model
-    add = lambda base, pattern: base + jnp.tensordot(s, pattern, axes=1)  # noqa: E731
-    return model.replace(nodal_dead=add(model.nodal_dead, ch.nodal_dead),
-                         nodal_follower=add(model.nodal_follower, ch.nodal_follower),
-                         distributed_world=add(model.distributed_world, ch.distributed_world),
-                         distributed_local=add(model.distributed_local, ch.distributed_local),
-                         element_point_dead=add(model.element_point_dead, ch.element_point_dead),
-                         element_point_follower=add(model.element_point_follower,
-                                                    ch.element_point_follower))
+    return model.replace(**{
+        key: getattr(model, key) + jnp.tensordot(s, getattr(ch, key), axes=1)
+        for key in CHANNEL_PATTERNS if getattr(model, key) is not None})
 
 
 @dataclasses.dataclass(frozen=True)
@@ -144,7 +145,7 @@ def loads_at(model, t):
     (:func:`obstacles_at`)."""
     model = _with_channels(model, scales(model.channels, t))
     changes = registry.at_time(model, t)
-    if model.structure.moving_obstacles:
+    if model.obstacle_shift is not None:
         changes["obstacles"], changes["obstacle_velocity"] = obstacles_at(model, t)
     return model.replace(**changes) if changes else model
 
@@ -176,9 +177,10 @@ def profile_tables(profiles):
     return params, table_t, table_scale
 
 
-def build_channels(loads, structure) -> LoadChannels:
+def build_channels(loads, structure, present: dict) -> LoadChannels:
     """One channel per load spec in ``loads``, with its pattern at unit scale (NumPy
-    float64 leaves)."""
+    float64 leaves); a pattern is None where ``present[field]`` is False (the Model's
+    load array of that kind is None: the scene has no load of that kind)."""
     n, e = structure.n_nodes, structure.n_elements
     k = len(loads)
     rods = {r.name: r for r in structure.rods}
@@ -199,6 +201,8 @@ def build_channels(loads, structure) -> LoadChannels:
             target = dead if load.frame == "world" else follower
             cols = slice(0, 3) if load.kind == "force" else slice(3, 6)
             target[i, info.first_node + load.node, cols] = load.vector
-    return LoadChannels(tuple(ld.profile.kind for ld in loads), params, table_t,
-                        table_scale, dead, follower, dist_world, dist_local, point_dead,
-                        point_follower)
+    patterns = dict(nodal_dead=dead, nodal_follower=follower, distributed_world=dist_world,
+                    distributed_local=dist_local, element_point_dead=point_dead,
+                    element_point_follower=point_follower)
+    return LoadChannels(tuple(ld.profile.kind for ld in loads), params, table_t, table_scale,
+                        **{k: a if present[k] else None for k, a in patterns.items()})

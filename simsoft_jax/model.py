@@ -2,9 +2,12 @@
 
 A :class:`Model` is a JAX pytree. Its array fields (reference twists, stiffness, loads,
 initial frames...) are traced leaves, so changing their values never recompiles a solver;
-its :class:`Structure` (node and element counts, rods, constrained dofs, which load kinds
-exist) is static metadata: solvers are compiled once per structure, and terms a scene does
-not use (gravity, follower loads, distributed loads) are not traced at all.
+its :class:`Structure` (node and element counts, rods, constrained dofs, obstacles...) is
+static metadata, and so is which optional parts it holds: a term the scene does not use
+(gravity, a kind of load, viscosity, mass damping, friction, moving obstacles, magnetic
+or fluid loads) has its part None (:mod:`simsoft_jax.parts`), which is part of the pytree
+structure, so ``model.gravity is not None`` is a trace-time test and nothing of the term
+is traced. Solvers are compiled once per structure and set of parts.
 
 Node numbering: the nodes of all rods are concatenated in scene order; element ``e``
 joins nodes ``element_nodes[e]`` and ``element_nodes[e] + 1`` (rods are chains), so every
@@ -30,6 +33,7 @@ from .actuator_tables import chamber_arrays, tendon_arrays
 from .field_tables import fluid_part, magnetic_part
 from .joint_layout import layout as joint_layout
 from .loads import LoadChannels, TimeLaws, build_channels, build_laws
+from .parts import refuse_absent
 from .scene_contact import QUADRATURE_POINTS, contact_tables, motion_profiles
 from .scene_mechanisms import jointed_rods
 from .scene_start import check_start, unheld_rods
@@ -54,15 +58,6 @@ class Structure:
     element_nodes: tuple          # node A of each element (node B = A + 1)
     rods: tuple                   # RodInfo per rod
     free: tuple                   # n_nodes*6 bools: True where the dof is free
-    has_nodal_dead: bool = False
-    has_nodal_follower: bool = False
-    has_distributed_world: bool = False
-    has_distributed_local: bool = False
-    has_point_dead: bool = False       # world-frame point loads by s inside an element
-    has_point_follower: bool = False   # section-frame point loads by s inside an element
-    has_gravity: bool = False
-    has_viscosity: bool = False   # Kelvin-Voigt terms traced in dynamics
-    has_mass_damping: bool = False  # mass-proportional damping traced in dynamics
     coupled_stiffness: bool = False   # Model.stiffness is (E,6,6) (couplings), else (E,6)
     coupled_inertia: bool = False     # Model.inertia is (E,6,6) (off-diagonal), else (E,6)
     inertia_offset: bool = False      # some section's centre of mass is off its axis
@@ -85,8 +80,6 @@ class Structure:
     obstacle_names: tuple = ()    # [[obstacles]] names, in scene order
     obstacle_kinds: tuple = ()    # their kinds (simsoft_jax.obstacles.KINDS); () = no contact
     contact_points: int = 0       # quadrature points per element for contact
-    has_friction: bool = False    # some obstacle has friction > 0 (traced then)
-    moving_obstacles: bool = False  # some obstacle has a motion (traced in dynamics)
     self_contact: bool = False    # rod-rod and self contact ([contact] self; statics)
     contact_pairs: int = 0        # element pairs the rod-rod narrow phase holds
 
@@ -119,6 +112,14 @@ class Structure:
 @dataclasses.dataclass(frozen=True)
 class Model:
     """Arrays of a discretized scene (SI units). Shapes: N nodes, E elements, D drives.
+
+    Optional parts (:mod:`simsoft_jax.parts`) are None when the scene lacks their term,
+    and then not traced: nodal_dead, nodal_follower, distributed_world,
+    distributed_local, element_point_dead, element_point_follower (no load of that kind,
+    with any time law), gravity (no ``[gravity]``), viscosity (all zero), mass_damping
+    (all zero), obstacle_friction (no obstacle with friction > 0), obstacle_shift (no
+    moving obstacle), magnetic, fluid. :meth:`replace` refuses a value for a part that
+    is None, naming it.
 
     R0 (N,3,3), p0 (N,3): configuration the solvers start from (columns of R0 are the
     local axes in world coordinates). d0 (E,6): stress-free relative twists (spec S34).
@@ -163,7 +164,8 @@ class Model:
     (C,) Pa, chamber_area (C,) m^2, chamber_offset (C,2) m, chamber_law: pressure
     chambers (:mod:`simsoft_jax.terms.chambers`).
     contact_radius (E,) m and contact_stiffness (E,) N/m^2 per element, obstacles (K,11)
-    parameter rows (:mod:`simsoft_jax.obstacles`), obstacle_friction (K,), slip_velocity
+    parameter rows (:mod:`simsoft_jax.obstacles`), obstacle_friction (K,) Coulomb
+    coefficients (traced in friction when some obstacle has one > 0), slip_velocity
     () m/s: the contact of :mod:`simsoft_jax.terms.contact` (read only when the structure
     has obstacles); obstacle_shift (K,3) m and obstacle_law
     (:class:`~simsoft_jax.loads.TimeLaws`): the obstacles' motions, each moved by
@@ -235,11 +237,14 @@ class Model:
         """A copy with some arrays replaced (same structure: no recompilation).
 
         Checked, with a ValueError naming the field: an array keeps its shape (the
-        structure fixes it), and a concrete non-zero value of a term this model was built
-        without (e.g. ``nodal_dead`` of a scene with no world-frame nodal load,
-        ``viscosity`` of one without viscosity) is refused, since the solvers would not
-        read it (:func:`check_built_terms`); traced values are not inspected.
+        structure fixes it), and a part this model was built without (None: e.g.
+        ``gravity`` of a scene without gravity, ``viscosity`` of one without viscosity)
+        gets no value (:func:`simsoft_jax.parts.refuse_absent`): the solvers compiled for
+        the model do not read it; build the model from a scene that has the term. A
+        present part replaced by None drops its term (another pytree structure: the
+        solvers compile again).
         """
+        refuse_absent(self, changes)
         for key, value in changes.items():
             old = getattr(self, key, None)
             if (old is not None and value is not None and hasattr(old, "shape")
@@ -247,46 +252,7 @@ class Model:
                 raise ValueError(f"Model.replace: {key}: shape {np.shape(value)} differs from "
                                  f"the model's {np.shape(old)} (the structure fixes the "
                                  "shapes; build a new model from the scene)")
-        model = dataclasses.replace(self, **changes)
-        check_built_terms(model, changes)
-        return model
-
-
-# Arrays whose term the solvers trace only when the scene has it: (field, the Structure
-# flag that says so, what the term is).
-_BUILT_TERMS = (
-    ("nodal_dead", "has_nodal_dead", "world-frame nodal loads"),
-    ("nodal_follower", "has_nodal_follower", "section-frame (follower) nodal loads"),
-    ("distributed_world", "has_distributed_world", "world-frame distributed forces"),
-    ("distributed_local", "has_distributed_local", "section-frame distributed forces"),
-    ("element_point_dead", "has_point_dead", "world-frame point loads inside elements"),
-    ("element_point_follower", "has_point_follower",
-     "section-frame point loads inside elements"),
-    ("gravity", "has_gravity", "gravity"),
-    ("viscosity", "has_viscosity", "viscous terms"),
-    ("mass_damping", "has_mass_damping", "mass damping"),
-    ("obstacle_friction", "has_friction", "friction"),
-    ("obstacle_shift", "moving_obstacles", "moving obstacles"),
-)
-
-
-def check_built_terms(model: "Model", fields=None) -> None:
-    """Raise a ValueError naming the field when ``model`` holds concrete non-zero values
-    of a term its structure does not trace (they would be silently ignored): the load,
-    gravity, viscosity, mass-damping, friction and obstacle-motion arrays of
-    ``_BUILT_TERMS``, all of them or those in ``fields``. Traced values (inside ``jit``,
-    ``vmap`` or ``grad``) are not inspected."""
-    s = model.structure
-    for key, flag, what in _BUILT_TERMS:
-        if fields is not None and key not in fields:
-            continue
-        value = getattr(model, key)
-        if (getattr(s, flag) or value is None or isinstance(value, jax.core.Tracer)
-                or not np.any(np.asarray(value) != 0.0)):
-            continue
-        raise ValueError(f"{key}: this model was built without {what} (all {key} values "
-                         f"zero), so non-zero values would be ignored; build it from a "
-                         f"scene that has {what}")
+        return dataclasses.replace(self, **changes)
 
 
 jax.tree_util.register_dataclass(
@@ -483,8 +449,8 @@ def build_model(scene, device: bool = True) -> Model:
     length = np.linalg.norm(d0[:, :3], axis=1)
     K, coupled = _section_table(K)
     M, coupled_inertia = _section_table(M)
-    gravity = np.zeros(3) if scene.gravity is None else np.asarray(scene.gravity, float)
-    V = np.concatenate(V)
+    gravity = None if scene.gravity is None else np.asarray(scene.gravity, float)
+    V, C = np.concatenate(V), np.concatenate(C)
     times, disp, rot, slide, drive_nodes, sliding = _drive_tables(scene, by_name)
     masses = tuple(dataclasses.replace(m, node=by_name[m.rod].first_node + m.node)
                    for m in getattr(scene, "masses", ())) + joints.masses
@@ -495,22 +461,9 @@ def build_model(scene, device: bool = True) -> Model:
             point_xi[by_name[load.rod].first_element + load.element] = load.xi
     tendons, tendon_data = tendon_arrays(scene, by_name, n_elements)
     chambers, chamber_data = chamber_arrays(scene, by_name, n_elements)
-    at_node = [ld for ld in loads if ld.kind != "distributed_force" and ld.element is None]
-    inside = [ld for ld in loads if ld.element is not None]
     structure = Structure(
         n_nodes=n_nodes, element_nodes=tuple(elem_nodes), rods=tuple(rods),
         free=tuple(free.ravel().tolist()),
-        has_nodal_dead=any(ld.frame == "world" for ld in at_node),
-        has_nodal_follower=any(ld.frame == "local" for ld in at_node),
-        has_point_dead=any(ld.frame == "world" for ld in inside),
-        has_point_follower=any(ld.frame == "local" for ld in inside),
-        has_distributed_world=any(ld.kind == "distributed_force" and ld.frame == "world"
-                                  for ld in loads),
-        has_distributed_local=any(ld.kind == "distributed_force" and ld.frame == "local"
-                                  for ld in loads),
-        has_gravity=scene.gravity is not None,
-        has_viscosity=bool(np.any(V != 0.0)),
-        has_mass_damping=bool(np.any(np.concatenate(C) != 0.0)),
         coupled_stiffness=coupled,
         coupled_inertia=coupled_inertia,
         inertia_offset=coupled_inertia and bool(np.any(M[:, 3:, :3])),
@@ -525,14 +478,12 @@ def build_model(scene, device: bool = True) -> Model:
         obstacle_kinds=tuple(o.kind for o in obstacles),
         contact_points=(scene.contact.quadrature_points if scene.contact else
                         QUADRATURE_POINTS) if obstacles or self_contact else 0,
-        has_friction=any(o.friction > 0.0 for o in obstacles),
-        moving_obstacles=any(o.profile is not None for o in obstacles),
         self_contact=self_contact,
         contact_pairs=scene.contact.max_pairs if self_contact else 0,
     )
     arrays = dict(
         R0=R0, p0=p0, d0=d0, length=length, stiffness=K,
-        inertia=M, viscosity=V, mass_damping=np.concatenate(C),
+        inertia=M, viscosity=V, mass_damping=C,
         nodal_dead=nodal_dead,
         nodal_follower=nodal_follower, distributed_world=dist_world,
         distributed_local=dist_local, element_point_dead=point_dead,
@@ -547,11 +498,29 @@ def build_model(scene, device: bool = True) -> Model:
         joint_offset_a=joints.offset_a, joint_offset_b=joints.offset_b,
         joint_rotation=joints.rotation, **tendon_data, **chamber_data,
         **contact_tables(scene, K, length))
-    model = Model(structure=structure, channels=build_channels(timed, structure),
+    at_node = [ld for ld in loads if ld.kind != "distributed_force" and ld.element is None]
+    inside = [ld for ld in loads if ld.element is not None]
+    spread = [ld for ld in loads if ld.kind == "distributed_force"]
+    present = {   # the optional parts the scene has (the others are None: not traced)
+        "nodal_dead": any(ld.frame == "world" for ld in at_node),
+        "nodal_follower": any(ld.frame == "local" for ld in at_node),
+        "distributed_world": any(ld.frame == "world" for ld in spread),
+        "distributed_local": any(ld.frame == "local" for ld in spread),
+        "element_point_dead": any(ld.frame == "world" for ld in inside),
+        "element_point_follower": any(ld.frame == "local" for ld in inside),
+        "gravity": scene.gravity is not None,
+        "viscosity": bool(np.any(V != 0.0)),
+        "mass_damping": bool(np.any(C != 0.0)),
+        "obstacle_friction": any(o.friction > 0.0 for o in obstacles),
+        "obstacle_shift": any(o.profile is not None for o in obstacles),
+    }
+    arrays.update({k: None for k, has in present.items() if not has})
+    model = Model(structure=structure, channels=build_channels(timed, structure, present),
                   tendon_law=build_laws([t.profile for t in getattr(scene, "tendons", ())]),
                   chamber_law=build_laws([c.profile for c in getattr(scene, "chambers", ())]),
                   obstacle_law=build_laws(motion_profiles(obstacles)),
                   magnetic=magnetic_part(scene), fluid=fluid_part(scene),
-                  **{k: np.asarray(a, np.float64) for k, a in arrays.items()})
+                  **{k: None if a is None else np.asarray(a, np.float64)
+                     for k, a in arrays.items()})
     # one batched transfer (a device_put per array costs more than the arrays' numbers)
     return jax.device_put(model) if device else model

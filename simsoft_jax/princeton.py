@@ -104,7 +104,7 @@ def case_model(model: Model, theta_deg, load_N) -> Model:
     th = jnp.deg2rad(jnp.asarray(theta_deg, jnp.float64))
     down = jnp.stack([0.0 * th, -jnp.sin(th), -jnp.cos(th)])
     nodal = jnp.zeros_like(model.nodal_dead).at[-1, :3].set(load_N * down)
-    if not model.structure.has_gravity:
+    if model.gravity is None:
         return model.replace(nodal_dead=nodal)
     return model.replace(nodal_dead=nodal, gravity=GRAVITY * down)
 

@@ -51,14 +51,14 @@ def solve_static_checked(model: Model, settings, check):
     return eq.R, eq.p, pack((eq._replace(R=None, p=None), count))
 
 
-def static_layout(structure) -> tuple:
+def static_layout(model) -> tuple:
     """Shapes and types of the packed ``(Equilibrium without R and p, count)`` of
-    :func:`solve_static_checked` for a model of ``structure``
-    (:class:`jax.ShapeDtypeStruct` leaves, None for absent fields), to unpack its output
-    without tracing it."""
+    :func:`solve_static_checked` for ``model`` (:class:`jax.ShapeDtypeStruct` leaves,
+    None for absent fields), to unpack its output without tracing it."""
     def like(shape, dtype=np.float64):
         return jax.ShapeDtypeStruct(shape, dtype)
 
+    structure = model.structure
     n, count = structure.n_nodes, like((), np.int64)
     frames = (like((n, 3, 3)), like((n, 3)))
     eq = Equilibrium(
@@ -68,7 +68,7 @@ def static_layout(structure) -> tuple:
         multipliers=like((multiplier_count(structure),)) if structure.joints else None,
         tendon_tension=(like((len(structure.tendon_names),))
                         if structure.tendon_names else None),
-        previous=frames if structure.has_friction else None)
+        previous=frames if model.obstacle_friction is not None else None)
     return eq, count
 
 
@@ -86,7 +86,7 @@ def compiled_static_solver(model: Model, settings):
     program = compile_stored(solve_static_checked,
                              (model, as_traced(settings), np.bool_(True)),
                              jax.tree_util.tree_structure((0, 0, 0)), "static")
-    layout = Layout(static_layout(model.structure))
+    layout = Layout(static_layout(model))
 
     def compiled(*args):
         R, p, packed = jax.device_get(program(*args))

@@ -77,7 +77,7 @@ def negative_eigenvalues(model: Model, eq, tangent=None) -> jax.Array:
     or friction (the Newton tangent with friction holds its stick terms, which this count
     leaves out); assembled here otherwise. Pure: jit- and vmap-able."""
     s = model.structure
-    if tangent is not None and not (coupling.present(s) or s.has_friction):
+    if tangent is not None and not (coupling.present(s) or model.obstacle_friction is not None):
         return count_negative_pivots(*symmetric_blocks(tangent))
     loaded = full_loads(model)
     r, blocks = residual_and_tangent(loaded, eq.R, eq.p, 1.0)

@@ -52,11 +52,33 @@ def test_parameter_names_are_checked():
     assert cal.check_parameters(["viscosity", "E"], dynamic=True) == ("viscosity", "E")
 
 
+def released_cantilever():
+    """A soft viscous cantilever released under gravity (dynamic)."""
+    return sj.Scene.from_dict({
+        "name": "released_cantilever", "solver": {"kind": "dynamic", "t_end": 0.4, "dt": 0.01},
+        "gravity": {"vector": [0.0, 0.0, -9.81]},
+        "rods": [{"name": "rod", "material": {"E": 2e6, "nu": 0.45, "density": 1100.0,
+                                              "viscosity": 2e3},
+                  "section": {"shape": "circle", "diameter": 0.01}, "elements": 4,
+                  "geometry": {"kind": "straight", "length": 0.2}}],
+        "constraints": [{"kind": "clamp", "rod": "rod", "node": 0}]})
+
+
 def test_scales_multiply_their_columns(beam):
-    scaled = cal.apply_scales(beam, ("E", "GJ", "viscosity"), jnp.log(jnp.array([2.0, 3.0, 5.0])))
+    """Each parameter scales its columns; viscosity of a model built without it (the
+    Princeton beam: Model.viscosity None) is refused, naming it."""
     factor = np.array([2.0, 1.0, 1.0, 3.0, 2.0, 2.0])
+    scaled = cal.apply_scales(beam, ("E", "GJ"), jnp.log(jnp.array([2.0, 3.0])))
     np.testing.assert_allclose(scaled.stiffness, np.asarray(beam.stiffness) * factor, rtol=1e-15)
-    np.testing.assert_allclose(scaled.viscosity, np.asarray(beam.viscosity) * 5.0, rtol=1e-15)
+    viscous = sj.build_model(released_cantilever())
+    scaled = cal.apply_scales(viscous, ("E", "GJ", "viscosity"),
+                              jnp.log(jnp.array([2.0, 3.0, 5.0])))
+    np.testing.assert_allclose(scaled.stiffness, np.asarray(viscous.stiffness) * factor,
+                               rtol=1e-15)
+    np.testing.assert_allclose(scaled.viscosity, np.asarray(viscous.viscosity) * 5.0, rtol=1e-15)
+    assert np.all(np.asarray(viscous.viscosity)[:, 3:] > 0.0)
+    with pytest.raises(ValueError, match="params: 'viscosity': the model was built without"):
+        cal.apply_scales(beam, ("viscosity",), jnp.zeros(1))
 
 
 def _targets(beam, cases, nodes, log_scale=None, noise=0.0, seed=0):
@@ -134,15 +156,7 @@ def test_dynamic_identification_recovers_viscosity_and_stiffness():
     """Issue 5, part 4: a soft cantilever released under gravity; its tip trajectory
     (noise 0.1 mm) identifies the Kelvin-Voigt viscosity and EI_y through rollout
     gradients (IFT at every step)."""
-    scene = sj.Scene.from_dict({
-        "name": "released_cantilever", "solver": {"kind": "dynamic", "t_end": 0.4, "dt": 0.01},
-        "gravity": {"vector": [0.0, 0.0, -9.81]},
-        "rods": [{"name": "rod", "material": {"E": 2e6, "nu": 0.45, "density": 1100.0,
-                                              "viscosity": 2e3},
-                  "section": {"shape": "circle", "diameter": 0.01}, "elements": 4,
-                  "geometry": {"kind": "straight", "length": 0.2}}],
-        "constraints": [{"kind": "clamp", "rod": "rod", "node": 0}]})
-    model = sj.build_model(scene)
+    model = sj.build_model(released_cantilever())
     settings = sj.DynamicSettings(dt=0.01, steps=40, rho_inf=0.9, save_every=2)
     true = np.array([1.5, 1.2])
     truth = sj.simulate(cal.apply_scales(model, ("viscosity", "EIy"), jnp.log(jnp.asarray(true))),

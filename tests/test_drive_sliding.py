@@ -1,7 +1,6 @@
 """Drive constraints with ``slides_along``: the node follows its prescribed rotation and
 the position components normal to e, and slides freely along the world direction e."""
 import numpy as np
-import pytest
 
 import simsoft_jax as sj
 

@@ -162,8 +162,9 @@ def time_scaled(model, lam, v0=None):
     params = ch.params.at[:, :2].multiply(lam).at[:, 2].divide(lam)
     ch = ch.replace(table_t=ch.table_t * lam, params=params)
     v0 = model.v0 if v0 is None else jnp.asarray(v0, jnp.float64)
-    return model.replace(inertia=model.inertia * lam**2, viscosity=model.viscosity * lam,
-                         channels=ch, v0=v0 / lam)
+    viscosity = None if model.viscosity is None else model.viscosity * lam
+    return model.replace(inertia=model.inertia * lam**2, viscosity=viscosity, channels=ch,
+                         v0=v0 / lam)
 
 
 def rollout(model, settings, state, calls, lam=1.0):

@@ -220,7 +220,8 @@ def test_bad_input_names_the_argument(planar):
     for actuators, message in (
             ([("stiffnes", 0)], "actuators: the model has no array 'stiffnes'"),
             ([("nodal_follower", (9, 5))], "actuators[0]: index (9, 5) is outside"),
-            ([("nodal_dead", (8, 0))], "actuators[0]: the model's structure has no"),
+            ([("nodal_dead", (8, 0))], "actuators[0]: this model was built without "
+                                       "world-frame nodal loads ('nodal_dead' is None)"),
             ([("nodal_follower", (8, 5)), ("nodal_follower", (-1, 5))],
              "actuators[1]: writes entries of 'nodal_follower' another actuator")):
         with pytest.raises(ValueError) as info:

@@ -23,6 +23,9 @@ import jax.numpy as jnp
 from simsoft_jax import assembly, element, kinematics, linalg
 from conftest import rot_z, skew
 
+# Load parts of a Model, None when the scene has no load of that kind (and gravity)
+PARTS = ("nodal_dead", "nodal_follower", "distributed_world", "distributed_local", "gravity")
+
 AL_E, AL_G, AL_RHO = 71.7e9, 27.37e9, 2679.0  # aluminum_7075 (scene-format.md)
 
 # jitted once here: eager calls of these small kernels dispatch (and compile) op by op
@@ -407,14 +410,13 @@ def test_load_tables_and_constraint_masks_two_rods():
     point[6, 3:] = m2                          # s = 0.55 of the arc: element 2 of b, xi 0.2
     np.testing.assert_allclose(arr(m.element_point_follower), point, atol=0)
     np.testing.assert_allclose(arr(m.element_point_xi[6]), 0.2, rtol=1e-12)
-    assert st.has_point_follower and not st.has_point_dead
+    assert m.element_point_follower is not None and m.element_point_dead is None
     dw, dl = np.zeros((8, 3)), np.zeros((8, 3))
     dw[:4] = qw
     dl[4:] = ql
     np.testing.assert_allclose(arr(m.distributed_world), dw, atol=0)
     np.testing.assert_allclose(arr(m.distributed_local), dl, atol=0)
-    assert (st.has_nodal_dead, st.has_nodal_follower, st.has_distributed_world,
-            st.has_distributed_local, st.has_gravity) == (True, True, True, True, False)
+    assert [getattr(m, k) is not None for k in PARTS] == [True, True, True, True, False]
 
     free = np.ones((10, 6), bool)
     free[0] = False                 # clamp
@@ -426,22 +428,19 @@ def test_load_tables_and_constraint_masks_two_rods():
     np.testing.assert_array_equal(np.asarray(st.free_mask()), free.astype(float))
 
 
-def test_load_flags_only_for_load_kinds_present():
+def test_load_parts_only_for_load_kinds_present():
     m = build([rod()], loads=[{"kind": "force", "rod": "arm", "node": -1,
                                "vector": [0, 0, 1.0], "frame": "local"}])
-    st = m.structure
-    assert (st.has_nodal_dead, st.has_nodal_follower, st.has_distributed_world,
-            st.has_distributed_local, st.has_gravity) == (False, True, False, False, False)
-    np.testing.assert_allclose(arr(m.gravity), 0.0)
+    assert [getattr(m, k) is not None for k in PARTS] == [False, True, False, False, False]
+    assert m.channels.nodal_follower is not None and m.channels.nodal_dead is None
 
 
-def test_gravity_flag_only_when_gravity_table_exists():
-    assert not build([rod()]).structure.has_gravity
+def test_gravity_part_only_when_gravity_table_exists():
+    assert build([rod()]).gravity is None
     m = build([rod()], gravity=[0.0, 0.0, -9.81])
-    assert m.structure.has_gravity
     np.testing.assert_allclose(arr(m.gravity), [0.0, 0.0, -9.81])
     # a [gravity] table is a structural choice even when its vector is zero
-    assert build([rod()], gravity=[0.0, 0.0, 0.0]).structure.has_gravity
+    np.testing.assert_array_equal(arr(build([rod()], gravity=[0.0, 0.0, 0.0]).gravity), 0.0)
 
 
 def test_stiffness_from_section_material_and_override():
@@ -545,7 +544,7 @@ def tangent_scene():
 def test_assembled_tangent_matches_finite_differences_and_block_solve():
     m = sj.build_model(tangent_scene())
     st = m.structure
-    assert st.has_gravity and st.has_nodal_dead and st.has_nodal_follower
+    assert m.gravity is not None and m.nodal_dead is not None and m.nodal_follower is not None
     n = st.n_nodes
     rng = np.random.default_rng(11)
     H = [pose(R, p) @ exp_se3(0.15 * rng.normal(size=6))

@@ -254,14 +254,15 @@ def test_viscosity_on_a_model_built_without_it_is_refused():
     scene = dynamic_scene()
     scene["materials"][0]["viscosity"] = 0.0
     model = sj.build_model(sj.Scene.from_dict(scene))
-    assert not model.structure.has_viscosity
-    with pytest.raises(ValueError, match="viscosity: this model was built without"):
-        sj.simulate(model.replace(viscosity=model.viscosity + 1.0), SETTINGS)
+    assert model.viscosity is None
+    with pytest.raises(ValueError, match="^viscosity: this model was built without"):
+        model.replace(viscosity=np.ones((model.structure.n_elements, 6)))
 
 
-def test_replace_refuses_terms_the_structure_does_not_trace_and_changed_shapes():
-    """A value the solvers would not read is refused where it is set (naming the field);
-    zeros, and traced values inside jit, pass. The reference: a model rebuilt from the
+def test_replace_refuses_parts_the_model_was_built_without_and_changed_shapes():
+    """A part the scene lacks is None and gets no value, zeros included, nor inside jit
+    (the solvers compiled for the model do not read it), with a ValueError naming the
+    field; a present part takes traced values. The reference: a model rebuilt from the
     scene with the load present gives a different equilibrium, so the refused value was
     one that matters."""
     scene = {"solver": {"kind": "static"},
@@ -275,18 +276,23 @@ def test_replace_refuses_terms_the_structure_does_not_trace_and_changed_shapes()
     model = sj.build_model(sj.Scene.from_dict(scene))
     tip = np.zeros((4, 6))
     tip[-1, 2] = 0.5
-    for key, value in (("nodal_dead", tip), ("gravity", np.array([0.0, 0.0, -9.81])),
+    for key, value in (("nodal_dead", tip), ("nodal_dead", np.zeros((4, 6))),
+                       ("gravity", np.array([0.0, 0.0, -9.81])),
                        ("distributed_world", np.ones((3, 3)))):
+        assert getattr(model, key) is None
         with pytest.raises(ValueError, match=f"^{key}: this model was built without"):
             model.replace(**{key: value})
-    assert model.replace(nodal_dead=np.zeros((4, 6))).structure == model.structure
+    with pytest.raises(ValueError, match="^gravity: this model was built without gravity"):
+        jax.jit(lambda g: model.replace(gravity=g).p0)(jnp.array([0.0, 0.0, -1.0]))
+    with pytest.raises(ValueError, match="^nodal_dead: this model was built without"):
+        model.channels.replace(nodal_dead=np.zeros((0, 4, 6)))
     with pytest.raises(ValueError, match=r"Model.replace: stiffness: shape \(3, 6, 6\)"):
         model.replace(stiffness=np.broadcast_to(np.eye(6), (3, 6, 6)))
-    traced = jax.jit(lambda g: model.replace(gravity=g).gravity)(jnp.array([0.0, 0.0, -1.0]))
-    np.testing.assert_array_equal(np.asarray(traced), [0.0, 0.0, -1.0])
+    traced = jax.jit(lambda f: model.replace(nodal_follower=f).nodal_follower)(jnp.ones((4, 6)))
+    np.testing.assert_array_equal(np.asarray(traced), 1.0)
     scene["loads"].append({"kind": "force", "rod": "r", "node": -1, "vector": [0, 0, 0.5]})
     loaded = sj.build_model(sj.Scene.from_dict(scene))
-    assert loaded.structure.has_nodal_dead
+    assert loaded.nodal_dead is not None
     plain = sj.solve_static(model, sj.StaticSettings())
     pushed = sj.solve_static(loaded, sj.StaticSettings())
     assert float(jnp.abs(pushed.p[-1, 2] - plain.p[-1, 2])) > 1e-3

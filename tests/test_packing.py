@@ -64,7 +64,7 @@ def test_static_layout_is_the_traced_output(scene):
                                   np.bool_(True))
     n = model.structure.n_nodes
     assert (R.shape, p.shape) == ((n, 3, 3), (n, 3))
-    layout = programs.static_layout(model.structure)
+    layout = programs.static_layout(model)
     size = sum(int(np.prod(x.shape)) for x in jax.tree_util.tree_leaves(layout))
     assert packed.shape == (size,)
     fields = jax.eval_shape(lambda m, st: sj.statics.equilibrium(m, st)._replace(R=None, p=None),

@@ -42,8 +42,7 @@ def closed_form(a):
 
 def test_load_by_s_inside_an_element_is_not_rounded():
     model = sj.build_model(scene(4, {"s": 0.3}))
-    s = model.structure
-    assert s.has_point_dead and not s.has_nodal_dead
+    assert model.element_point_dead is not None and model.nodal_dead is None
     assert np.allclose(model.element_point_dead[1], [0, 0, F, 0, 0, 0])
     assert abs(float(model.element_point_xi[1]) - 0.2) < 1e-12
 
@@ -147,7 +146,7 @@ def test_a_time_law_scales_a_load_inside_an_element():
     load = {"kind": "moment", "rod": "arm", "s": 0.7, "vector": [0, 2.0, 0], "frame": "local",
             "profile": {"kind": "linear", "rate": 0.5}}
     model = sj.build_model(sj.Scene.from_dict(scene_with([load], "dynamic")))
-    assert model.structure.has_point_follower and not model.structure.has_nodal_follower
+    assert model.element_point_follower is not None and model.nodal_follower is None
     assert float(model.element_point_xi[1]) == pytest.approx(0.4, abs=1e-12)
     at = sj.loads.loads_at(model, 0.6)          # scale 0.5 * 0.6
     np.testing.assert_allclose(np.asarray(at.element_point_follower[1]), [0, 0, 0, 0, 0.6, 0],

@@ -113,8 +113,8 @@ def scene_dict(elements, load_steps=10, stiffness=SOFT, dead=True, follower=True
 @functools.lru_cache(maxsize=None)
 def base_model(elements):
     model = sj.build_model(sj.Scene.from_dict(scene_dict(elements)))
-    s = model.structure
-    assert s.has_nodal_dead and s.has_nodal_follower and not s.has_gravity
+    assert (model.nodal_dead is not None and model.nodal_follower is not None
+            and model.gravity is None)
     return model
 
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from .._xla import jit
 from ..compile_cache import compile_stored
-from ..model import Model, check_built_terms
+from ..model import Model
 from ..packing import Layout, pack
 from ..statics import as_traced
 from ..status import Status
@@ -197,7 +197,6 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
     compiled programs. Returns ``(Trajectory, compile_seconds)``; the trajectory holds
     NumPy arrays (``final``: the state after the last computed block).
     """
-    check_built_terms(model, ("viscosity", "mass_damping"))
     if not 0.0 < dt <= t_end:
         raise ValueError(f"solver.dt: must be in (0, t_end = {t_end:g}], got {dt:g}")
     h, save_every = block_steps(dt, t_end, save_every)

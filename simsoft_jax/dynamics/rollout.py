@@ -25,7 +25,7 @@ from ..assembly import apply_constraints, assemble_blocks, attachments_and_tange
 from ..linalg import block_solve, factorize_coupled, solve_coupled
 from ..drives import reduce, slide_maps
 from ..loads import loads_at
-from ..model import Model, check_built_terms
+from ..model import Model
 from ..statics import as_traced
 from ..status import Status, describe, poison_gradient, raise_if_failed
 from .memory import empty_newton_memory
@@ -150,7 +150,6 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
     policy returns for it (:func:`initial_state`; the policy is called once more there,
     its memory update discarded).
     """
-    check_built_terms(model, ("viscosity", "mass_damping"))
     compile_cache.enable()
     if state is not None:
         state = State(*(jnp.asarray(x, jnp.float64) for x in state))

@@ -138,7 +138,7 @@ def _watch(model: Model, c: ContinuationState, d, converged, tangent, positive):
     from ..batched import any_lane   # batched imports this package
 
     zero = jnp.zeros_like(c.kick)
-    if not branch.watched(model.structure):
+    if not branch.watched(model):
         return c.stable, jnp.array(False), zero
 
     if not branch.symmetric_at_equilibrium(model):
@@ -270,7 +270,7 @@ def equilibrium(model: Model, settings: StaticSettings, continuation=None,
                                              jax.lax.stop_gradient(st))
         # None without tendons (a zero-size output would trouble batched maps)
         tension = m.tendon_tension if m.structure.tendon_names else None
-        eq = eq._replace(previous=eq.previous if m.structure.has_friction else None,
+        eq = eq._replace(previous=eq.previous if m.obstacle_friction is not None else None,
                          tangent=eq.tangent if keep_tangent else None)
         y = jnp.zeros(0) if eq.multipliers is None else eq.multipliers   # None: no joints
         R, p, y = implicit(EquilibriumProblem(st.tangent), (m, eq.converged, eq.previous),

@@ -54,9 +54,11 @@ _SIDE_THRESHOLD = 1e-6
 EIGH_LIMIT_NODES = 17
 
 
-def watched(structure) -> bool:
-    """Whether the continuation of a model of this structure watches stability."""
-    return not (structure.joints or structure.has_friction or structure.self_contact)
+def watched(model) -> bool:
+    """Whether the continuation of ``model`` watches stability (not with joints, friction
+    or self contact)."""
+    s = model.structure
+    return not (s.joints or model.obstacle_friction is not None or s.self_contact)
 
 
 def symmetric_at_equilibrium(model) -> bool:
@@ -68,10 +70,10 @@ def symmetric_at_equilibrium(model) -> bool:
     that are not :func:`watched`: where in doubt, :func:`stable` tests the tangent's
     symmetric part."""
     s = model.structure
-    return watched(s) and not (s.has_nodal_follower or s.has_distributed_local
-                               or s.has_point_dead or s.has_point_follower
-                               or s.obstacle_kinds or s.tendon_names or s.chamber_names
-                               or registry.active(model))
+    return watched(model) and not (
+        model.nodal_follower is not None or model.distributed_local is not None
+        or model.element_point_dead is not None or model.element_point_follower is not None
+        or s.obstacle_kinds or s.tendon_names or s.chamber_names or registry.active(model))
 
 
 def stable(tangent) -> jax.Array:

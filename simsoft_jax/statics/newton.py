@@ -28,19 +28,19 @@ def load_scale(model: Model):
     (:func:`simsoft_jax.terms.registry.load_scale_squared`)."""
     s = model.structure
     mask = s.free_mask()
-    nodal = jnp.zeros_like(model.nodal_dead)
-    if s.has_nodal_dead:
+    nodal = jnp.zeros((s.n_nodes, 6))
+    if model.nodal_dead is not None:
         nodal = nodal + jnp.abs(model.nodal_dead)
-    if s.has_nodal_follower:
+    if model.nodal_follower is not None:
         nodal = nodal + jnp.abs(model.nodal_follower)
     total = jnp.sum(weighted_norm(model, nodal * mask) ** 2)
-    q = jnp.zeros_like(model.distributed_world)
-    if s.has_gravity:
+    q = jnp.zeros((s.n_elements, 3))
+    if model.gravity is not None:
         rho_a = jax.vmap(line_density)(model.inertia)
         q = q + rho_a[:, None] * model.gravity
-    if s.has_distributed_world:
+    if model.distributed_world is not None:
         q = q + model.distributed_world
-    if s.has_distributed_local:
+    if model.distributed_local is not None:
         q = q + jnp.abs(model.distributed_local)
     total = total + jnp.sum((model.length[:, None] * q) ** 2)
     if s.offset_load_nodes:        # forces at offset points and their moments
@@ -48,7 +48,7 @@ def load_scale(model: Model):
         total = total + jnp.sum(f ** 2) + jnp.sum(
             (jnp.linalg.norm(model.offset_point, axis=1) * jnp.linalg.norm(f, axis=1)
              / model.char_length) ** 2)
-    if s.mass_nodes and s.has_gravity:   # weights of attached masses
+    if s.mass_nodes and model.gravity is not None:   # weights of attached masses
         w = model.mass[:, None] * model.gravity
         total = total + jnp.sum(w ** 2) + jnp.sum(
             (jnp.linalg.norm(model.mass_offset, axis=1) * jnp.linalg.norm(w, axis=1)
@@ -92,7 +92,7 @@ class NewtonState(NamedTuple):
 
 def level_tolerance(model: Model, settings: StaticSettings):
     """The tolerance of the intermediate load levels (see :class:`StaticSettings`)."""
-    if model.structure.has_friction:
+    if model.obstacle_friction is not None:
         return settings.tolerance
     return jnp.maximum(settings.level_tolerance, settings.tolerance)
 
@@ -100,7 +100,7 @@ def level_tolerance(model: Model, settings: StaticSettings):
 def max_load_step(model: Model, settings: StaticSettings):
     """The largest load increment of the continuation (see :class:`StaticSettings`)."""
     first = 1.0 / settings.load_steps
-    if settings.max_load_step is None or model.structure.has_friction:
+    if settings.max_load_step is None or model.obstacle_friction is not None:
         return first
     return jnp.maximum(settings.max_load_step, first)
 

@@ -42,8 +42,10 @@ class ElementData(NamedTuple):
     """An element's model arrays: d0 (6,), length (m), stiffness, inertia (6,) diagonals or
     (6,6) matrices (:mod:`simsoft_jax.sections`), viscosity (6,) diagonal, q_world,
     q_local (3,) distributed loads (N/m), gravity (3,) (m/s^2), maps (G,6,12) and mass
-    (12,12) (dynamics; see :mod:`simsoft_jax.inertia`), mass_damping () mass-proportional
-    damping constant (1/s, :mod:`.mass_damping`; None in statics); contact:
+    (12,12) (dynamics, None in statics; see :mod:`simsoft_jax.inertia`), mass_damping ()
+    mass-proportional damping constant (1/s, :mod:`.mass_damping`); viscosity, q_world,
+    q_local, gravity and mass_damping are None when the model lacks them
+    (:mod:`simsoft_jax.parts`: their terms are not traced); contact:
     :class:`.contact.ContactData` (None in scenes without obstacles); parts: ``{name:
     slice}`` of the registered terms the model has (:func:`.registry.element_parts`;
     None without any)."""

@@ -21,26 +21,26 @@ def element_residual(structure, lam, dynamic: bool):
     ``structure`` at load level ``lam`` (inertia, viscosity and mass damping only when
     ``dynamic``) and contact, plus the registered terms whose slices ``data.parts``
     holds (:mod:`.registry`: point loads inside elements, offset gravity, tendons,
-    chambers, magnetic couples, fluid loads)."""
+    chambers, magnetic couples, fluid loads). The optional arrays of ``data`` (None when
+    the model lacks the term, :mod:`simsoft_jax.parts`) say which terms are traced."""
     s = structure
-    dead = s.has_gravity or s.has_distributed_world
 
     def residual(el: Element, data):
         r = elastic.force(el, data)
         if dynamic:
             r = r + inertia.force(el, data, s.inertia_kind)
-            if s.has_viscosity:
+            if data.viscosity is not None:
                 r = r + viscous.force(el, data)
-            if s.has_mass_damping:
+            if data.mass_damping is not None:
                 r = r + mass_damping.force(el, data)
-        if dead:
-            r = r + distributed.dead_force(el, data, lam, s.has_gravity,
-                                           s.has_distributed_world)
-        if s.has_distributed_local:
+        if data.gravity is not None or data.q_world is not None:
+            r = r + distributed.dead_force(el, data, lam)
+        if data.q_local is not None:
             r = r + distributed.follower_force(el, data, lam)
         if s.obstacle_kinds:
             r = r + contact.force(el, data.contact, data.length, s.obstacle_kinds,
-                                  s.contact_points, dynamic and s.has_friction)
+                                  s.contact_points,
+                                  dynamic and data.contact.friction is not None)
         registered = registry.forces(el, data.parts, lam)
         return r if registered is None else r + registered
 
@@ -73,18 +73,17 @@ def element_tangents(structure, lam, dynamic: bool):
     return tangents
 
 
-def node_residual(structure, lam):
-    """``f(R, dead (6,), follower (6,)) -> (6,)``: the node terms of ``structure``."""
-    s = structure
-    return lambda R, dead, follower: nodal.force(R, dead, follower, lam, s.has_nodal_dead,
-                                                 s.has_nodal_follower)
+def node_residual(lam):
+    """``f(R, dead (6,), follower (6,)) -> (6,)``: the nodal loads (each None when the
+    model has none of that kind)."""
+    return lambda R, dead, follower: nodal.force(R, dead, follower, lam)
 
 
-def node_tangent(structure, lam):
+def node_tangent(lam):
     """``f(R, dead, follower) -> (r (6,), K (6,6))`` with K the derivative of
     :func:`node_residual` in the rotation perturbation ``R exp(theta)`` (the translation
     columns are zero: point loads do not depend on the position)."""
-    residual = node_residual(structure, lam)
+    residual = node_residual(lam)
 
     def tangent(R, dead, follower):
         def r(theta):

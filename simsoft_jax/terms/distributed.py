@@ -7,13 +7,14 @@ from .. import element
 from ..inertia import line_density
 
 
-def dead_force(el, data, lam, with_gravity: bool, with_world: bool):
+def dead_force(el, data, lam):
     """Nodal forces (12,) of ``-lam (q_world + rhoA g)`` per unit length (N/m), on the
-    residual side, integrated along the deformed element (:func:`element.dead_load_terms`)."""
+    residual side, integrated along the deformed element (:func:`element.dead_load_terms`);
+    ``data.q_world``, ``data.gravity`` None when the model lacks them."""
     q = jnp.zeros(3, el.d.dtype)
-    if with_world:
+    if data.q_world is not None:
         q = q + data.q_world
-    if with_gravity:
+    if data.gravity is not None:
         q = q + line_density(data.inertia) * data.gravity
     stress, _, direct, _ = element.dead_load_terms(el.RA, el.d, el.P, data.length, -lam * q)
     return el.P.T @ stress + direct

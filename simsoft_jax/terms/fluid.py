@@ -71,11 +71,13 @@ def area(diameter):
 
 
 def per_element(model) -> ElementFluid:
-    """Every element's slice (E, ...) of ``model.fluid``; buoyancy ``-rho_f A g buoyancy``."""
+    """Every element's slice (E, ...) of ``model.fluid``; buoyancy ``-rho_f A g buoyancy``
+    (zero without gravity: ``model.gravity`` None)."""
     part = model.fluid
     n = model.length.shape[0]
     half = 0.5 * part.density * part.diameter
-    lift = (-part.density * part.buoyancy * area(part.diameter))[:, None] * model.gravity
+    lift = (jnp.zeros((n, 3)) if model.gravity is None else
+            (-part.density * part.buoyancy * area(part.diameter))[:, None] * model.gravity)
     return ElementFluid(model.length, half * part.drag_normal,
                         half * part.drag_tangent * jnp.pi,
                         jnp.broadcast_to(part.current, (n, 3)), lift)

@@ -68,5 +68,5 @@ def load_scale(model):
 
 
 TERM = Term("offset_gravity",
-            lambda model: model.structure.has_gravity and model.structure.inertia_offset,
+            lambda model: model.gravity is not None and model.structure.inertia_offset,
             force, per_element, load_scale)

@@ -38,19 +38,20 @@ def force(el, part: ElementPointLoad, lam):
 
 
 def per_element(model) -> ElementPointLoad:
-    """Every element's slice (E, ...): the kinds of point load the structure has."""
-    s = model.structure
-    return ElementPointLoad(model.element_point_dead if s.has_point_dead else None,
-                            model.element_point_follower if s.has_point_follower else None,
+    """Every element's slice (E, ...): the kinds of point load the model has (None for
+    the others)."""
+    return ElementPointLoad(model.element_point_dead, model.element_point_follower,
                             model.element_point_xi)
 
 
 def load_scale(model):
     """Sum of squares (N^2) of the point forces and moments (divided by ``char_length``)."""
-    point = jnp.abs(model.element_point_dead) + jnp.abs(model.element_point_follower)
+    point = sum(jnp.abs(a) for a in (model.element_point_dead, model.element_point_follower)
+                if a is not None)
     return jnp.sum(point[:, :3] ** 2) + jnp.sum((point[:, 3:] / model.char_length) ** 2)
 
 
 TERM = Term("point_loads",
-            lambda model: model.structure.has_point_dead or model.structure.has_point_follower,
+            lambda model: (model.element_point_dead is not None
+                           or model.element_point_follower is not None),
             force, per_element, load_scale)
