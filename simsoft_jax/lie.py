@@ -129,9 +129,8 @@ def translation_coefficients(w):
 # hat / vee / adjoints (spec S1-S4)
 # --------------------------------------------------------------------------------------
 
-# skew(w)_ij = -eps_ijk w_k (Levi-Civita symbol eps): the skew matrix as one contraction
-# (one or two operations in a compiled program instead of some twenty per call; exact:
-# one non-zero term per entry)
+# skew(w)_ij = -eps_ijk w_k (Levi-Civita symbol eps): the skew matrix as one product and
+# sum (a few operations in a compiled program instead of some twenty per call)
 _SKEW_BASIS = -np.array([[[float(np.linalg.det(np.eye(3)[[i, j, k]])) for k in range(3)]
                           for j in range(3)] for i in range(3)])
 
@@ -139,7 +138,9 @@ _SKEW_BASIS = -np.array([[[float(np.linalg.det(np.eye(3)[[i, j, k]])) for k in r
 def skew(w):
     """3x3 skew matrix with ``skew(w) @ y = w x y`` (the paper's eq. 115, spec S1); ``w`` (3,)
     or (3, ...) gives (3, 3, ...)."""
-    return jnp.tensordot(_SKEW_BASIS, jnp.asarray(w), axes=([2], [0]))
+    w = jnp.asarray(w)
+    basis = _SKEW_BASIS.reshape((3, 3, 3) + (1,) * (w.ndim - 1))
+    return jnp.sum(basis * w, axis=2)
 
 
 def vee_so3(W):
