@@ -1,4 +1,4 @@
-"""Cost of the block-tridiagonal chain solve (:mod:`simsoft_jax.linalg`): one
+"""Cost of the block-tridiagonal chain solve (:mod:`simsoft_jax.math.linalg`): one
 factorization and one solve of a random, diagonally dominant chain of 6x6 blocks, as the
 static Newton pass does it, for growing node counts, on the package's path (dense LU up
 to ``DENSE_LIMIT_NODES`` nodes, cyclic-reduction levels down to that size above) and on
@@ -24,7 +24,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import common  # noqa: E402
 
-from simsoft_jax import _xla, linalg  # noqa: E402
+from simsoft_jax.math import _xla, linalg  # noqa: E402
 
 LOOPS = 2000
 

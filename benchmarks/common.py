@@ -137,7 +137,7 @@ def compile_dynamic(model, settings, state):
     """(lowered, compiled) rollout of ``settings.steps`` steps from ``state`` (e.g.
     ``sj.initial_state(model)``, computed outside the timed program) for this model
     structure, called as ``compiled(model, settings, state)``."""
-    from simsoft_jax.dynamics.rollout import rollout_program
+    from simsoft_jax.solvers.dynamics.rollout import rollout_program
 
     lowered = rollout_program.lower(model, settings, state)
     return lowered, lowered.compile()

@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import common  # noqa: E402
 
 import simsoft_jax as sj  # noqa: E402
-from simsoft_jax import control  # noqa: E402
+from simsoft_jax.studies import control  # noqa: E402
 
 TENSION, TARGET, GAIN = 0.02, 0.01, 2.0    # N, m, N/m
 SCENE = {

@@ -3,7 +3,7 @@ at the floor and welded to a rigid plate, a side force on the plate's left rod) 
 static solve and as dynamic steps, with 8 ... 512 elements per rod, next to the same
 two rods without the plate (clamped, free ends). The joints add a fixed-size dense
 coupling set (the plate's 6 DOF, 12 multipliers and, per rod, its joint node) to the
-block-tridiagonal chains (:mod:`simsoft_jax.mechanisms`), so the work per Newton
+block-tridiagonal chains (:mod:`simsoft_jax.couplings.mechanisms`), so the work per Newton
 iteration should stay linear in the elements: the table gives the cost per element
 relative to the smallest size, and the ratio to the rods alone.
 

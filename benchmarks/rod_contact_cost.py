@@ -23,7 +23,7 @@ sys.path.insert(0, str(HERE))
 import common  # noqa: E402
 
 import simsoft_jax as sj  # noqa: E402
-from simsoft_jax import rod_pairs  # noqa: E402
+from simsoft_jax.couplings import rod_pairs  # noqa: E402
 
 L, R_C, F = 0.2, 0.005, 10.0
 

@@ -28,7 +28,7 @@ import statics_princeton  # noqa: E402
 import tangent_paths  # noqa: E402
 import throughput  # noqa: E402
 
-from simsoft_jax import advisor  # noqa: E402
+from simsoft_jax.analysis import advisor  # noqa: E402
 
 BENCHMARKS = {
     "statics": statics_princeton.run,
@@ -98,7 +98,7 @@ def main(argv=None, prog=None) -> int:
         seconds[name] = time.perf_counter() - start
     suggestions = advise(results)
     if suggestions:
-        print("\n== suggested resolutions (simsoft_jax.advisor) ==")
+        print("\n== suggested resolutions (simsoft_jax.analysis.advisor) ==")
         print("\n".join(suggestions))
     info["load_average_end"] = common.machine()["load_average"]
     common.save_json(out, "machine", {**info, "quick": args.quick, "seconds": seconds,

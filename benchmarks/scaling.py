@@ -23,8 +23,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import common  # noqa: E402
 
 import simsoft_jax as sj  # noqa: E402
-from simsoft_jax import assembly, dynamics, lie, linalg  # noqa: E402
-from simsoft_jax.dynamics import residual  # noqa: E402
+from simsoft_jax.physics import assembly  # noqa: E402
+from simsoft_jax.solvers import dynamics  # noqa: E402
+from simsoft_jax.math import lie, linalg  # noqa: E402
+from simsoft_jax.solvers.dynamics import residual  # noqa: E402
 
 
 @partial(jax.jit, static_argnames="k")

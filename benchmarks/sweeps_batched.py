@@ -21,7 +21,7 @@ import sys
 import time
 from pathlib import Path
 
-from simsoft_jax import sweeps
+from simsoft_jax.studies import sweeps
 
 sweeps.use_host_devices()      # every core a JAX device; before any array is created
 
@@ -33,8 +33,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import common  # noqa: E402
 
 import simsoft_jax as sj  # noqa: E402
-from simsoft_jax import princeton  # noqa: E402
-from simsoft_jax._xla import jit  # noqa: E402
+from simsoft_jax.apps import princeton  # noqa: E402
+from simsoft_jax.math._xla import jit  # noqa: E402
 
 
 def clock(fn, *args):

@@ -43,7 +43,7 @@ def static_sweep(cases: int):
 def warm_map(angles: int, loads: int):
     """The Princeton load-angle x load map (16 elements, gravity) walked as a continuation
     (``sweeps.static_sweep(warm_start=True)`` via ``princeton.load_angle_sweep``)."""
-    from simsoft_jax import princeton
+    from simsoft_jax.apps import princeton
 
     theta = np.linspace(0.0, 90.0, angles)
     load = np.linspace(0.5, 4.0, loads) * princeton.F0

@@ -94,7 +94,7 @@ def element_twists(result, rod: str):
     ``rod`` at every saved time of a dynamic Result, (T, E, 6)."""
     import jax
 
-    from simsoft_jax import kinematics
+    from simsoft_jax.analysis import kinematics
 
     twists = jax.jit(jax.vmap(kinematics.element_twists))
     return np.asarray(twists(result.rotations(rod), result.positions(rod)))

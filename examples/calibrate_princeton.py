@@ -21,8 +21,8 @@ import numpy as np
 from _common import parse_args, save, write_summary
 
 import simsoft_jax as sj
-from simsoft_jax import calibration as cal
-from simsoft_jax import princeton as pr
+from simsoft_jax.studies import calibration as cal
+from simsoft_jax.apps import princeton as pr
 from simsoft_jax.data_files import data_path
 
 DATA = data_path("princeton", "model_predictions_tip.csv")

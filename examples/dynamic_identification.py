@@ -18,7 +18,7 @@ import numpy as np
 from _common import parse_args, save, write_summary
 
 import simsoft_jax as sj
-from simsoft_jax import calibration as cal
+from simsoft_jax.studies import calibration as cal
 
 NAMES = ("viscosity", "EIy")
 TRUE = np.array([1.5, 1.2])

@@ -21,7 +21,8 @@ summary.json (``--fast``: 12 elements per finger instead of 24, 4 tensions inste
 import numpy as np
 
 import simsoft_jax as sj
-from simsoft_jax import contacts, statics
+from simsoft_jax.analysis import contacts
+from simsoft_jax.solvers import statics
 
 from _common import parse_args, save, write_summary
 

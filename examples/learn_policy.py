@@ -5,7 +5,7 @@ descent through the closed-loop rollouts.
 
 Set-up: a clamped soft arm (L = 0.2 m, EA = 50 N, EI = 2e-4 N m^2, mass damping 10 1/s)
 with one straight tendon at z = 5 mm. The policy is a PID on the tendon tension from the
-tip-height error, ``T = kp e + ki int(e) + kd de/dt`` (:func:`simsoft_jax.control.pid`,
+tip-height error, ``T = kp e + ki int(e) + kd de/dt`` (:func:`simsoft_jax.studies.control.pid`,
 the integral carried as the controller's memory), with the reference ramped to the
 target over the first 0.5 s. The loss is the mean over a batch of targets of the mean
 squared relative tip-height error over the run; its gradient in the log-gains comes from
@@ -29,7 +29,7 @@ import numpy as np
 import optax
 
 import simsoft_jax as sj
-from simsoft_jax import control
+from simsoft_jax.studies import control
 
 from _common import (ARM_EA, ARM_EI, ARM_LENGTH, ARM_OFFSET, parse_args, save, tendon_arm,
                      write_summary)

@@ -36,7 +36,7 @@ import numpy as np
 import optax
 
 import simsoft_jax as sj
-from simsoft_jax import control
+from simsoft_jax.studies import control
 
 from _common import (ARM_EA, ARM_EI, ARM_LENGTH, ARM_OFFSET, parse_args, save, tendon_arm,
                      write_summary)

@@ -18,8 +18,8 @@ import numpy as np
 
 from _common import parse_args, write_summary
 
-from simsoft_jax import princeton as pr
-from simsoft_jax import princeton_figures as figs
+from simsoft_jax.apps import princeton as pr
+from simsoft_jax.apps import princeton_figures as figs
 from simsoft_jax.data_files import data_path
 
 DATA = data_path("princeton", "model_predictions_tip.csv")

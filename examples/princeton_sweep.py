@@ -3,7 +3,7 @@
     python examples/princeton_sweep.py [--out DIR] [--fast]
 
 40 angles (0-90 deg) x 25 loads (0.5-4 f0) = 1000 static solves with gravity, in one
-compiled call (``princeton.load_angle_sweep``, built on ``simsoft_jax.sweeps.static_sweep``):
+compiled call (``princeton.load_angle_sweep``, built on ``simsoft_jax.studies.sweeps.static_sweep``):
 by default each point starts from its neighbour's equilibrium (a continuation along the
 grid, a few Newton iterations per point); ``--vmap`` solves all points at once from the
 straight beam instead. Figure: flapwise and edgewise tip deflection maps.
@@ -15,7 +15,7 @@ import numpy as np
 
 from _common import parse_args, save, write_summary
 
-from simsoft_jax import princeton as pr
+from simsoft_jax.apps import princeton as pr
 
 
 def main() -> int:

@@ -10,8 +10,8 @@ Model, from the files only:
   the data's unequal station spacing (13 of 38.25 mm, then 33.47 and 19.13 mm; segment
   ``length``) so that properties and masses sit where the data put them; its
   4x4 stiffness ``[extension, twist, flap, edgewise]`` (K11..K44 with couplings) becomes
-  the 6x6 section matrix by :func:`simsoft_jax.section_tables.read_stiffness_table` (as
-  :func:`simsoft_jax.sections.beam4_stiffness` maps it; shear-rigid data:
+  the 6x6 section matrix by :func:`simsoft_jax.scene.section_tables.read_stiffness_table` (as
+  :func:`simsoft_jax.scene.sections.beam4_stiffness` maps it; shear-rigid data:
   its default GA = 100 EA keeps shear strains negligible, below 1e-8 here; the tip
   deflection moves by 4e-8 of itself from GA = 1e4 EA, while the static solves take 4x
   fewer Newton iterations). Frames: world = the Nastran frame of the
@@ -19,7 +19,7 @@ Model, from the files only:
   (towards the leading edge), local z = +Z, so flap bending is ``kappa_y`` and a positive
   rotation about local x lifts the leading edge (nose up, the data's positive twist).
 * the 16 lumped masses of ``beam_inertia_skin*.csv`` as ``[[masses]]`` at the nodes with
-  their centre-of-gravity offsets (:func:`simsoft_jax.section_tables.read_mass_table`,
+  their centre-of-gravity offsets (:func:`simsoft_jax.scene.section_tables.read_mass_table`,
   frame map ``("-y", "x", "z")``) (their inertias do not enter statics); the rod's own
   rhoA is negligible (1e-9 kg/m);
 * gravity 9.80665 m/s^2; the tip mass hangs at the mid-chord (6 % chord = 6 mm aft of the
@@ -52,12 +52,12 @@ from _common import parse_args, write_summary
 
 import simsoft_jax as sj
 from simsoft_jax.data_files import data_path
-from simsoft_jax import observation_splits as splits
-from simsoft_jax.calibration_groups import groups_from_dict, parse_groups, predict
-from simsoft_jax.calibration_report import metrics
+from simsoft_jax.studies import observation_splits as splits
+from simsoft_jax.studies.calibration_groups import groups_from_dict, parse_groups, predict
+from simsoft_jax.studies.calibration_report import metrics
 from simsoft_jax.cli import main as cli
-from simsoft_jax.measurements import observation_set
-from simsoft_jax.section_tables import read_mass_table, read_stiffness_table
+from simsoft_jax.studies.measurements import observation_set
+from simsoft_jax.scene.section_tables import read_mass_table, read_stiffness_table
 
 DATA = data_path("real", "pazy_wing_technion")
 G = 9.80665

@@ -15,7 +15,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import simsoft_jax as sj  # noqa: E402
-from simsoft_jax import kinematics  # noqa: E402
+from simsoft_jax.analysis import kinematics  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 

@@ -38,23 +38,26 @@ else:  # read by JAX when it is imported (by the first solver module used)
 
 # public name -> the module that defines it (loaded on first use)
 _PUBLIC = {
-    "leaf_actuation": "actuation",
+    "leaf_actuation": "studies.actuation",
     **dict.fromkeys(("DynamicSettings", "State", "Trajectory", "energy", "initial_state",
-                     "simulate"), "dynamics"),
-    **dict.fromkeys(("InverseResult", "solve_inverse"), "inverse"),
-    **dict.fromkeys(("TrackingResult", "track_path"), "inverse_dynamics"),
-    "LoadChannels": "loads",
-    **dict.fromkeys(("BUILTIN_MATERIALS", "Material", "get_material"), "materials"),
-    **dict.fromkeys(("Model", "Structure", "build_model"), "model"),
-    **dict.fromkeys(("Result", "run"), "results"),
-    **dict.fromkeys(("Scene", "load_scene", "save_scene"), "scene"),
+                     "simulate"), "solvers.dynamics"),
+    **dict.fromkeys(("InverseResult", "solve_inverse"), "studies.inverse"),
+    **dict.fromkeys(("TrackingResult", "track_path"), "studies.inverse_dynamics"),
+    "LoadChannels": "model.loads",
+    **dict.fromkeys(("BUILTIN_MATERIALS", "Material", "get_material"), "scene.materials"),
+    **dict.fromkeys(("Model", "Structure", "build_model"), "model.model"),
+    **dict.fromkeys(("Result", "run"), "pipeline.results"),
+    **dict.fromkeys(("Scene", "load_scene", "save_scene"), "scene.scene"),
     **dict.fromkeys(("Section", "circle", "custom_inertia", "custom_stiffness",
                      "inertia_diagonal", "rectangle", "semicircle", "stiffness_diagonal",
-                     "tube", "viscosity_diagonal"), "sections"),
-    **dict.fromkeys(("Equilibrium", "StaticSettings", "solve_static"), "statics"),
-    **dict.fromkeys(("SolveError", "Status"), "status"),
+                     "tube", "viscosity_diagonal"), "scene.sections"),
+    **dict.fromkeys(("Equilibrium", "StaticSettings", "solve_static"), "solvers.statics"),
+    **dict.fromkeys(("SolveError", "Status"), "solvers.status"),
 }
 __all__ = sorted(_PUBLIC)
+# the layers, where a submodule is looked for by its short name (``sj.statics``)
+_LAYERS = ("math", "scene", "model", "physics", "couplings", "solvers", "analysis",
+           "studies", "pipeline", "apps")
 __version__ = "0.1.0"
 
 
@@ -64,11 +67,15 @@ def __getattr__(name: str):
     if name in _PUBLIC:
         value = getattr(_importlib.import_module(f".{_PUBLIC[name]}", __name__), name)
     elif not name.startswith("__"):
-        try:
-            value = _importlib.import_module(f".{name}", __name__)
-        except ModuleNotFoundError as err:
-            if err.name != f"{__name__}.{name}":
-                raise
+        places = ("",) if name in _LAYERS else (*(f"{layer}." for layer in _LAYERS), "")
+        for place in places:
+            try:
+                value = _importlib.import_module(f".{place}{name}", __name__)
+                break
+            except ModuleNotFoundError as err:
+                if err.name != f"{__name__}.{place}{name}":
+                    raise
+        else:
             raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
     else:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

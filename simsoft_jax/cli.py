@@ -28,7 +28,7 @@
   checkout (tables, plots, JSON; see benchmarks/README.md).
 
 Compiled solver programs are kept in JAX's persistent compilation cache
-(:mod:`simsoft_jax.compile_cache`; ``~/.cache/simsoft_jax/xla`` or
+(:mod:`simsoft_jax.solvers.compile_cache`; ``~/.cache/simsoft_jax/xla`` or
 ``$SIMSOFT_JAX_CACHE_DIR``), so a second run of a scene structure does not compile
 again: ``--cache-dir DIR`` moves it, ``--no-cache`` (or ``SIMSOFT_JAX_CACHE=0``) turns it
 off; both go before or after the command name (``bench`` has its own options). A
@@ -48,7 +48,7 @@ import numpy as np
 def _check_figures(args, kind: str) -> None:
     """``--plot`` and ``--animate`` checked before solving: suffix, folder, and a dynamic
     scene for an animation."""
-    from .output import check_figure
+    from .pipeline.output import check_figure
     if args.plot:
         from matplotlib.backend_bases import FigureCanvasBase
         check_figure(args.plot, "--plot", tuple(
@@ -61,10 +61,10 @@ def _check_figures(args, kind: str) -> None:
 
 
 def _run(args) -> int:
-    from ._validate import readable
-    from .built_models import scene_of
-    from .output import check_output
-    from .results import run
+    from .scene._validate import readable
+    from .model.built_models import scene_of
+    from .pipeline.output import check_output
+    from .pipeline.results import run
     def progress(t, t_end):
         print(f"\r  t = {t:.4g} / {t_end:.4g} s", end="", file=sys.stderr, flush=True)
 
@@ -155,8 +155,8 @@ def _figures(result, plot, animate):
 
 
 def _validate(args) -> int:
-    from ._validate import readable
-    from .scene import load_scene
+    from .scene._validate import readable
+    from .scene.scene import load_scene
     try:
         scene = load_scene(args.scene)
     except ValueError as err:
@@ -168,8 +168,8 @@ def _validate(args) -> int:
 
 
 def _princeton(args) -> int:
-    from . import princeton
-    from .princeton_figures import all_figures
+    from .apps import princeton
+    from .apps.princeton_figures import all_figures
     try:
         stations = [float(v) for v in args.stations.split(",")]
         measured = (princeton.read_measurements(args.measurements) if args.measurements
@@ -217,9 +217,9 @@ def _princeton_published(elements: int, out: Path) -> list:
     """Eq. (112) at the tip against the shipped ANSYS solid-element predictions (no
     gravity, dead tip loads; model output, see the data README): table and Figs. 16-18
     in ``out``; prints the tip errors. Returns the written paths."""
-    from . import princeton
+    from .apps import princeton
     from .data_files import data_path
-    from .princeton_figures import summary, station_errors
+    from .apps.princeton_figures import summary, station_errors
     err = princeton.errors(princeton.read_published_tip(
         data_path("princeton", "model_predictions_tip.csv")), elements, gravity=False)
     out.mkdir(parents=True, exist_ok=True)
@@ -234,9 +234,9 @@ def _princeton_published(elements: int, out: Path) -> list:
 
 def _calibrate(args) -> int:
     import json
-    from .calibration import fit_static
-    from .measurements import is_observation_file, static_targets
-    from .scene import load_scene
+    from .studies.calibration import fit_static
+    from .studies.measurements import is_observation_file, static_targets
+    from .scene.scene import load_scene
     if args.groups or args.split or args.hold_out_by or args.table_map or (
             Path(args.measurements).is_file()
                                      and is_observation_file(args.measurements)):
@@ -261,8 +261,8 @@ def _calibrate(args) -> int:
 def _observations(args, path):
     """The observation set of ``path`` against the scenes (CLI helper): an observation
     file, or a data set's table read through ``--table-map`` and ``--where``."""
-    from .measurements import load_table_map, observation_set
-    from .scene import load_scene
+    from .studies.measurements import load_table_map, observation_set
+    from .scene.scene import load_scene
     table_map = None
     if args.table_map:
         where = {}
@@ -293,8 +293,8 @@ def _print_rows(obs, predicted, title):
 
 def _held_out(args, obs) -> np.ndarray:
     """Rows (n,) held out of the fit: every ``--split``-th row, or by a column
-    (``--hold-out-by``, ``--hold-out``, ``--within``; :mod:`simsoft_jax.observation_splits`)."""
-    from . import observation_splits
+    (``--hold-out-by``, ``--hold-out``, ``--within``; :mod:`simsoft_jax.studies.observation_splits`)."""
+    from .studies import observation_splits
     held = np.zeros(len(obs.rows), bool)
     if args.split and args.hold_out_by:
         raise ValueError("split: give --split or --hold-out-by, not both")
@@ -316,8 +316,8 @@ def _calibrate_observations(args) -> int:
     """``calibrate`` with an observation file, groups (``--params`` items or ``--groups``
     TOML) and an optional ``--split N`` (every N-th row held out and predicted)."""
     import json
-    from .calibration_groups import fit_groups, load_groups, parse_groups, predict, print_fit
-    from .calibration_report import metrics
+    from .studies.calibration_groups import fit_groups, load_groups, parse_groups, predict, print_fit
+    from .studies.calibration_report import metrics
     try:
         if not args.params and not args.groups:
             raise ValueError("params: give --params or --groups")
@@ -349,7 +349,7 @@ def _predict(args) -> int:
     """``predict --fitted F.json --scenes S... --measurements M.csv``: per-row predictions
     with the fitted group scales, and their errors."""
     import json
-    from .calibration_groups import groups_from_dict, predict
+    from .studies.calibration_groups import groups_from_dict, predict
     try:
         try:
             fitted = json.loads(Path(args.fitted).read_text())
@@ -409,7 +409,7 @@ def _add_table_options(parser):
     parser.add_argument("--table-map", help="read --measurements as a data set's own table "
                         "through a map: a TOML file (scene/reference templates, rod, node, "
                         "[[quantities]] column, quantity, scale, std, offset; see "
-                        "simsoft_jax.measurements.load_table_map) or a shipped one: "
+                        "simsoft_jax.studies.measurements.load_table_map) or a shipped one: "
                         "pazy-tip-sweep, prepazy-tip-sweep (the Pazy and Pre-Pazy tip-mass "
                         "sweeps), minguet-strips (the Minguet-Dugundji displacements), "
                         "tdcr-tip-height (the ISIR tendon robot)")
@@ -447,9 +447,9 @@ def _cache_flags() -> argparse.ArgumentParser:
 
 
 def _configure_cache(args) -> None:
-    """Apply ``--no-cache`` / ``--cache-dir`` (:mod:`simsoft_jax.compile_cache`)."""
+    """Apply ``--no-cache`` / ``--cache-dir`` (:mod:`simsoft_jax.solvers.compile_cache`)."""
     import os
-    from . import compile_cache
+    from .solvers import compile_cache
     if getattr(args, "no_cache", False):
         os.environ[compile_cache.ENV_SWITCH] = "0"   # also for sj.run inside this process
     else:
@@ -490,7 +490,7 @@ def main(argv=None) -> int:
                       help="deflections relative to the self-weight state")
     p_pr.add_argument("--stations", default="0.25,0.5,0.75,1",
                       help="stations r/L, comma separated (default 0.25,0.5,0.75,1)")
-    p_pr.add_argument("--measurements", help="measured deflections CSV (simsoft_jax.princeton)")
+    p_pr.add_argument("--measurements", help="measured deflections CSV (simsoft_jax.apps.princeton)")
     p_pr.add_argument("--no-published", action="store_true",
                       help="skip the comparison with the shipped ANSYS solid-element "
                            "predictions (made when no --measurements are given)")

@@ -15,7 +15,7 @@ centreline and spanned by the local axis ``axis`` of each frame (edges ``p -/+ (
 so bending about that axis keeps the ribbon flat and twist shows as the strip winding; small
 frame triads (x red, y green, z blue) are optional. ``*_result`` helpers take a
 :class:`simsoft_jax.Result` and a rod name and draw the helical interpolation between nodes
-(the paper's eq. 27, :func:`simsoft_jax.kinematics.sample_shape`).
+(the paper's eq. 27, :func:`simsoft_jax.analysis.kinematics.sample_shape`).
 
 Also: tip trajectories (components vs time, the paper's Figs. 6-8 and 11), error bars grouped by
 load angle (the style of the paper's Figs. 16-18) and work-precision plots (error vs wall
@@ -430,7 +430,7 @@ def _samplers(samples_per_element: int):
     """Jitted single and time-batched shape samplers (a few kept, not one per call)."""
     import jax
 
-    from .kinematics import sample_shape
+    from .analysis.kinematics import sample_shape
 
     one = lambda Ri, pi: sample_shape(Ri, pi, samples_per_element)  # noqa: E731
     return jax.jit(one), jax.jit(jax.vmap(one))

@@ -6,7 +6,7 @@
   subprocesses the tests start (examples, notebooks, the command line): an installed copy
   elsewhere (another checkout's editable install) is never the one under test.
 * JAX's persistent compilation cache (on by default for ``sj.run`` and the command line,
-  :mod:`simsoft_jax.compile_cache`) in a folder of this test session, never the user's
+  :mod:`simsoft_jax.solvers.compile_cache`) in a folder of this test session, never the user's
   home, for every program of the session (JAX's own variables, so also for tests that
   never call ``sj.run``); set in the environment, so the subprocesses share it. Programs
   dropped by ``jax.clear_caches()`` (when the process holds many memory maps, see
@@ -16,7 +16,7 @@
   environment, so also for the examples, notebooks and command-line subprocesses):
   LLVM at optimization level 0 without its expensive passes, and the classic CPU
   emitters for every program (the package uses them for its top-level solver programs
-  already, :mod:`simsoft_jax._xla`; the gradients a test takes around a solver are
+  already, :mod:`simsoft_jax.math._xla`; the gradients a test takes around a solver are
   compiled by a plain ``jax.jit``). The suite compiles far more than it runs: the
   compilation of a 50-step rollout and of a static gradient (tests/test_one_model.py's
   scenes) took about 30 and 45 s of CPU time with XLA's defaults and 17-20 and 18-21 s
@@ -100,7 +100,8 @@ def _release_compiled_programs(request):
     ``COUNTS_COMPILATIONS = True`` and starts with none in memory (neither JAX's nor the
     programs and built models that ``sj.run`` keeps)."""
     if getattr(request.module, "COUNTS_COMPILATIONS", False):
-        from simsoft_jax import built_models, programs, results
+        from simsoft_jax.model import built_models
+        from simsoft_jax.pipeline import programs, results
 
         for kept in (programs.PROGRAMS, results._STATIC_RUNS, built_models._MODELS,
                      built_models._SEEN):
@@ -121,10 +122,10 @@ def iteration_matrices(model, R, p, seed=4):
     import jax
     import jax.numpy as jnp
 
-    from simsoft_jax import linalg
-    from simsoft_jax.dynamics import element_inertia
-    from simsoft_jax.dynamics.residual import residual_and_iteration_matrix
-    from simsoft_jax.dynamics.scheme import iteration_factors
+    from simsoft_jax.math import linalg
+    from simsoft_jax.solvers.dynamics import element_inertia
+    from simsoft_jax.solvers.dynamics.residual import residual_and_iteration_matrix
+    from simsoft_jax.solvers.dynamics.scheme import iteration_factors
 
     rng = np.random.default_rng(seed)
     v, vd, w = (jnp.asarray(0.3 * rng.standard_normal((model.structure.n_nodes, 6)))

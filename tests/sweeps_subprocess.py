@@ -16,8 +16,8 @@ import jax.numpy as jnp
 import numpy as np
 
 import simsoft_jax as sj
-from simsoft_jax import sweeps
-from simsoft_jax.output import write_atomic
+from simsoft_jax.studies import sweeps
+from simsoft_jax.pipeline.output import write_atomic
 
 L = 0.3
 

@@ -1,9 +1,9 @@
-"""simsoft_jax.advisor: power-law fits and suggested resolutions on synthetic
+"""simsoft_jax.analysis.advisor: power-law fits and suggested resolutions on synthetic
 work-precision data with known exact laws (independent reference: the closed forms)."""
 import numpy as np
 import pytest
 
-from simsoft_jax import advisor
+from simsoft_jax.analysis import advisor
 
 
 def test_fit_power_law_recovers_an_exact_law():

@@ -17,11 +17,12 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 import simsoft_jax as sj
-from simsoft_jax import linalg, stability
-from simsoft_jax.assembly import residual_and_tangent
-from simsoft_jax.batched import solve_static_lane
-from simsoft_jax.loads import full_loads
-from simsoft_jax.statics import branch
+from simsoft_jax.math import linalg
+from simsoft_jax.solvers import stability
+from simsoft_jax.physics.assembly import residual_and_tangent
+from simsoft_jax.solvers.batched import solve_static_lane
+from simsoft_jax.model.loads import full_loads
+from simsoft_jax.solvers.statics import branch
 
 L, EI = 1.0, 1.0
 P_CR = np.pi**2 * EI / (4 * L**2)

@@ -1,4 +1,4 @@
-"""simsoft_jax.built_models: the Model of a scene kept by content, an immutable Scene
+"""simsoft_jax.model.built_models: the Model of a scene kept by content, an immutable Scene
 object recognised by identity, and every way such a scene can still change noticed."""
 import json
 
@@ -7,7 +7,7 @@ import pytest
 
 import simsoft_jax as sj
 from conftest import arc, pure_bending_scene
-from simsoft_jax import built_models
+from simsoft_jax.model import built_models
 
 
 def cantilever(moment):

@@ -1,4 +1,4 @@
-"""Calibration (simsoft_jax.calibration, measurements, ``simsoft-jax calibrate``).
+"""Calibration (simsoft_jax.studies.calibration, measurements, ``simsoft-jax calibrate``).
 
 * the sensitivity matrix J = dr/dx (forward mode through the IFT) against central finite
   differences of the residuals;
@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import calibration as cal
-from simsoft_jax import princeton as pr
+from simsoft_jax.studies import calibration as cal
+from simsoft_jax.apps import princeton as pr
 from simsoft_jax.cli import main
-from simsoft_jax.measurements import static_targets
+from simsoft_jax.studies.measurements import static_targets
 
 ELEMENTS = 8
 NAMES = ("EIy", "EIz", "GJ")
@@ -245,7 +245,7 @@ def test_fit_static_honours_each_scenes_solver_settings(tmp_path):
     tolerance, not of the defaults; a scene allowed one Newton iteration in one load step
     cannot reach its equilibrium and the fit says so, while settings given explicitly
     override every scene's and recover the generating scale."""
-    from simsoft_jax.statics import StaticSettings, settings_from_scene
+    from simsoft_jax.solvers.statics import StaticSettings, settings_from_scene
     from test_calibration_groups import strip
     loose = strip("loose", 0.6, 0.0, solver={"kind": "static", "tolerance": 1e-2,
                                              "load_steps": 1, "max_load_step": 1.0})

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax.calibration_groups import parse_groups, predict
+from simsoft_jax.studies.calibration_groups import parse_groups, predict
 from simsoft_jax.cli import main
-from simsoft_jax.measurements import observation_set
+from simsoft_jax.studies.measurements import observation_set
 
 TRUE = {"EIy@0-1": 0.8, "EIy@2-3": 1.25, "GJ": 1.3}
 HEADER = "scene,rod,node,offset_x,offset_y,offset_z,quantity,value,std,reference\n"
@@ -82,7 +82,7 @@ def test_bounds_hold_in_minimize():
     the decoupled residuals used here, x1 = -1 (checked against the analytic solution)."""
     import jax.numpy as jnp
 
-    from simsoft_jax.calibration import minimize
+    from simsoft_jax.studies.calibration import minimize
 
     def residual(x):
         return jnp.stack([x[0] - 2.0, 3.0 * (x[1] + 1.0), 0.5 * (x[0] - 2.0)]), jnp.array(True)
@@ -93,7 +93,7 @@ def test_bounds_hold_in_minimize():
 
 
 def test_groups_toml_and_errors(tmp_path, capsys):
-    from simsoft_jax.calibration_groups import element_masks, load_groups
+    from simsoft_jax.studies.calibration_groups import element_masks, load_groups
     (tmp_path / "g.toml").write_text('[[groups]]\nparam = "EIy"\nelements = [0, 1]\n'
                                      'bounds = [0.5, 2.0]\n[[groups]]\nparam = "GJ"\n'
                                      'rod = "wing"\n')

@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import observation_splits as splits
-from simsoft_jax.calibration_groups import Group, fit_groups, parse_groups, predict, prior_rows
-from simsoft_jax.calibration_report import metrics
-from simsoft_jax.measurements import observation_set
-from simsoft_jax.statics import StaticSettings
+from simsoft_jax.studies import observation_splits as splits
+from simsoft_jax.studies.calibration_groups import Group, fit_groups, parse_groups, predict, prior_rows
+from simsoft_jax.studies.calibration_report import metrics
+from simsoft_jax.studies.measurements import observation_set
+from simsoft_jax.solvers.statics import StaticSettings
 
 from test_calibration_groups import strip
 
@@ -220,7 +220,7 @@ def test_levenberg_marquardt_stops_when_no_decrease_is_left():
     (the Gauss-Newton model predicts no further decrease) ends it as STATIONARY at the
     normal-equations solution after one accepted step and one check, instead of
     shrinking rejected steps until the damping overflows."""
-    from simsoft_jax.least_squares import Outcome, least_squares
+    from simsoft_jax.studies.least_squares import Outcome, least_squares
     A = np.array([[1.0, 0.0], [1.0, 1.0], [1.0, 2.0], [1.0, 3.0]])
     y = np.array([0.1, 0.9, 2.2, 2.8])
 

@@ -24,8 +24,10 @@ import pytest
 
 import simsoft_jax as sj
 from conftest import arc, pure_bending_scene
-from simsoft_jax import cli, compile_cache, sweeps
-from simsoft_jax.statics import settings_from_scene
+from simsoft_jax import cli
+from simsoft_jax.solvers import compile_cache
+from simsoft_jax.studies import sweeps
+from simsoft_jax.solvers.statics import settings_from_scene
 
 COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
 COUNTS_COMPILATIONS = True   # conftest: start this module with no program in memory

@@ -122,7 +122,7 @@ def cantilever_on_a_rod(welded: bool, kind="static"):
     """A cantilever along x (clamped at x = -L/2) pressed by a tip force onto a rod along
     y clamped at both ends, crossing at the cantilever's middle node; ``welded``: the
     cantilever is two rods welded at that node (a coupling node of the joint)."""
-    from simsoft_jax.terms.contact import SMOOTHING
+    from simsoft_jax.physics.terms.contact import SMOOTHING
     z = 2 * R_C - SMOOTHING * 2 * R_C      # a smoothing width into the contact
     if welded:
         top = [contact_rod("a", -L_TOP / 2, L_TOP / 2, N_TOP // 2, z=z),
@@ -170,9 +170,10 @@ def _dense_contact_count(model, R, p):
     """Negative eigenvalues of the symmetric part of the whole constrained tangent with
     the rod-rod contact, assembled densely here (chains + U W U^T), and its smallest
     eigenvalue magnitude."""
-    from simsoft_jax import linalg, rod_pairs
-    from simsoft_jax.assembly import residual_and_tangent
-    from simsoft_jax.loads import full_loads
+    from simsoft_jax.math import linalg
+    from simsoft_jax.couplings import rod_pairs
+    from simsoft_jax.physics.assembly import residual_and_tangent
+    from simsoft_jax.model.loads import full_loads
 
     loaded = full_loads(model)
     r, blocks = residual_and_tangent(loaded, R, p, 1.0)
@@ -188,7 +189,7 @@ def _dense_contact_count(model, R, p):
 def test_stability_count_with_rod_contact_equals_the_dense_count():
     """The count through the bordered system (stable crossing: 0) and, with a softening
     that makes the rods' tangent indefinite, the same count as the dense tangent."""
-    from simsoft_jax.stability import negative_eigenvalues
+    from simsoft_jax.solvers.stability import negative_eigenvalues
 
     scene = sj.Scene.from_dict(cantilever_on_a_rod(False))
     result = sj.run(scene)
@@ -206,7 +207,7 @@ def test_stability_count_with_rod_contact_equals_the_dense_count():
 def test_stability_count_with_contact_and_a_weld_equals_one_rod():
     """Joints and rod-rod contact together: the welded pair counts as the one rod, for a
     stable equilibrium and for an indefinite (softened) tangent."""
-    from simsoft_jax.stability import negative_eigenvalues
+    from simsoft_jax.solvers.stability import negative_eigenvalues
 
     pair = sj.run(sj.Scene.from_dict(cantilever_on_a_rod(True)))
     one = sj.run(sj.Scene.from_dict(cantilever_on_a_rod(False)))

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import assembly
-from simsoft_jax.dynamics.rollout import energy
-from simsoft_jax.terms import contact
+from simsoft_jax.physics import assembly
+from simsoft_jax.solvers.dynamics.rollout import energy
+from simsoft_jax.physics.terms import contact
 
 R_CONTACT, L_ROD, RHO_A, N = 0.02, 0.5, 0.5, 10
 MU, G = 0.3, 9.81
@@ -97,7 +97,7 @@ def test_rod_sliding_on_a_plane_with_friction_stops_after_coulomb_distance():
 def test_friction_tangent_in_the_velocities_matches_autodiff():
     """The dynamic iteration matrix with friction (C block by jacfwd in the velocities) is
     the same on the closed-form and the autodiff paths, at a sliding state."""
-    from simsoft_jax.dynamics.residual import element_inertia, residual_and_iteration_matrix
+    from simsoft_jax.solvers.dynamics.residual import element_inertia, residual_and_iteration_matrix
     model = sj.build_model(sj.Scene.from_dict(_scene([0.5, 0, 0], G, 1e6, -1e-4, 0.5)))
     rng = np.random.default_rng(3)
     v = jnp.asarray(model.v0 + 0.05 * rng.standard_normal(model.v0.shape))

@@ -1,7 +1,7 @@
 """Quasi-static friction (issue 14): the capstan equation for a flexible rod wrapped on a
 fixed rough drum, pulled at one end and clamped at the other, solved with load stepping
 and the regularized Coulomb law on the slip since the previous load level
-(:mod:`simsoft_jax.terms.static_friction`); and the friction of one element on a plane,
+(:mod:`simsoft_jax.physics.terms.static_friction`); and the friction of one element on a plane,
 sliding and sticking, against the resultant force and moment of its line load.
 
 The scene (one structure, compiled once): a drum of radius ``RC`` (axis y through the
@@ -137,8 +137,8 @@ def test_friction_of_an_element_sliding_and_sticking_on_a_plane(slip, share):
     mu f_n L u_t / sqrt(..) and their moment about node A is L/2 x that force. Sliding
     (|u_t| = 100 u_s: Coulomb's mu f_n L to 5e-5), sticking (|u_t| = 0.01 u_s: a spring,
     1 % of it), and a slip with a normal part (only the tangential part counts)."""
-    from simsoft_jax import scene_contact as contact_tables
-    from simsoft_jax.terms import contact, element_state, static_friction
+    from simsoft_jax.scene import scene_contact as contact_tables
+    from simsoft_jax.physics.terms import contact, element_state, static_friction
     L, r, k, mu, us = 0.2, 0.01, 1.0e5, 0.4, 1.0e-6
     eps = contact.SMOOTHING * r
     plane = jnp.zeros((1, contact_tables.ROW)).at[0, 5].set(1.0)   # point 0, normal +z

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import assembly
-from simsoft_jax.loads import loads_at
-from simsoft_jax.terms import contact
+from simsoft_jax.physics import assembly
+from simsoft_jax.model.loads import loads_at
+from simsoft_jax.physics.terms import contact
 
 R_CONTACT, L_ROD, RHO_A, N = 0.02, 0.5, 0.5, 10
 MU, G = 0.3, 9.81

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import obstacles
-from simsoft_jax.terms import contact, static_friction
+from simsoft_jax.physics import obstacles
+from simsoft_jax.physics.terms import contact, static_friction
 
 R_C = 1.0 / 64.0
 OBSTACLES = {

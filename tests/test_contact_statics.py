@@ -17,8 +17,9 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import assembly, lie, obstacles
-from simsoft_jax.terms import contact, element_state
+from simsoft_jax.physics import assembly, obstacles
+from simsoft_jax.math import lie
+from simsoft_jax.physics.terms import contact, element_state
 
 N = 40
 R_CONTACT = 0.01

@@ -1,6 +1,6 @@
-"""The frictionless contact tangent (:func:`simsoft_jax.terms.contact.force_and_tangent`)
+"""The frictionless contact tangent (:func:`simsoft_jax.physics.terms.contact.force_and_tangent`)
 against its reference: ``jax.jacfwd`` of the contact force
-(:func:`simsoft_jax.terms.contact.force`) in the 12 right perturbations of the two nodal
+(:func:`simsoft_jax.physics.terms.contact.force`) in the 12 right perturbations of the two nodal
 frames, for every obstacle kind, a bent and twisted element pressed into each obstacle at
 several stations, with and without end caps."""
 import jax
@@ -8,9 +8,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from simsoft_jax import lie
-from simsoft_jax.scene_contact import ROW
-from simsoft_jax.terms import contact, element_state
+from simsoft_jax.math import lie
+from simsoft_jax.scene.scene_contact import ROW
+from simsoft_jax.physics.terms import contact, element_state
 
 RADIUS, STIFFNESS, POINTS = 0.01, 2e6, 3
 

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import assembly, obstacles
-from simsoft_jax.element import relative_twist
-from simsoft_jax.scene_contact import parameter_row
-from simsoft_jax.terms import contact
+from simsoft_jax.physics import assembly, obstacles
+from simsoft_jax.physics.element import relative_twist
+from simsoft_jax.scene.scene_contact import parameter_row
+from simsoft_jax.physics.terms import contact
 
 # ---------------------------------------------------------------- signed distance
 CENTER, NORMAL = np.array([0.1, -0.2, 0.3]), np.array([1.0, 2.0, 2.0]) / 3.0

@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import control as ctl
-from simsoft_jax import dynamics as dy
+from simsoft_jax.studies import control as ctl
+from simsoft_jax.solvers import dynamics as dy
 
 # ---------------------------------------------------------------- P-controlled tip moment
 EI_M, L_M, TARGET = 1.0, 1.0, 0.5          # N m^2, m, rad

@@ -12,7 +12,7 @@ cosseratbench = pytest.importorskip("cosseratbench")
 from cosseratbench import registry  # noqa: E402
 
 from conftest import REPO_ROOT  # noqa: E402
-from simsoft_jax.cosseratbench_solver import SimsoftJaxSolver  # noqa: E402
+from simsoft_jax.apps.cosseratbench_solver import SimsoftJaxSolver  # noqa: E402
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -1,7 +1,7 @@
 """docs/scene-format.md keeps up with the scene parser.
 
 The accepted key sets are read from the code (the allowed-key tuples that
-``simsoft_jax/scene.py`` and its section parsers (``scene_rods.py``, ``scene_contact.py``,
+``simsoft_jax/scene/scene.py`` and its section parsers (``scene_rods.py``, ``scene_contact.py``,
 ...: ``SOURCES``) pass to ``check_keys``, their module-level ``*_KEYS`` tables, and the
 options they pass to ``choice``), so a key added to the parser without a line in
 the reference makes this test fail. The complete example scenes in the document must
@@ -16,9 +16,9 @@ from pathlib import Path
 
 import pytest
 
-from simsoft_jax import scene as scene_module
-from simsoft_jax import scene_rods
-from simsoft_jax.scene import Scene
+from simsoft_jax.scene import scene as scene_module
+from simsoft_jax.scene import scene_rods
+from simsoft_jax.scene.scene import Scene
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import dynamics as dy
+from simsoft_jax.solvers import dynamics as dy
 
 SCENE = {
     "solver": {"kind": "dynamic", "t_end": 0.5, "dt": 0.01, "rho_inf": 0.9},

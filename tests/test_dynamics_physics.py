@@ -1,4 +1,4 @@
-"""Physics of the dynamic solver (simsoft_jax.dynamics, inertia, loads): spec algorithm.md
+"""Physics of the dynamic solver (simsoft_jax.solvers.dynamics, inertia, loads): spec algorithm.md
 §3.5 (inertia I2 / I4), §4 (Lie-group generalized-alpha, S53-S69), §6.3 (free planar
 rotation, S76-S80), §9 item 13; scene-format.md (dynamic solver, loads, initial velocity).
 
@@ -35,7 +35,7 @@ from scipy.spatial.transform import Rotation
 import simsoft_jax as sj  # enables float64
 import jax
 import jax.numpy as jnp
-from simsoft_jax import dynamics as dy
+from simsoft_jax.solvers import dynamics as dy
 from conftest import skew
 
 TOL = 1e-12  # Newton tolerance of every rollout here (largest nodal correction)
@@ -321,7 +321,7 @@ def test_momentum_of_free_rod_after_force_pulse(inertia, material):
       1.4e-2 -> 3.1e-3 (-> 7.5e-4). Asserted: drift < 3e-4 (aluminium) / 2e-2 (rubber)
       at dt = 0.01 and a reduction >= 3.4x (order >= 1.75) when dt halves.
     Consistent inertia on the rubber rod: the gyroscopic force is the Euler-Poincare term
-    of M_e (see simsoft_jax.inertia), so the semi-discrete equations conserve this momentum
+    of M_e (see simsoft_jax.physics.inertia), so the semi-discrete equations conserve this momentum
     map and the drift falls with dt: 1.29e-2 -> 4.6e-3 (ratio 2.8, still pre-asymptotic on
     this strongly deforming rod; asserted >= 2.5). With the earlier frozen-field form
     (spec I2) it stayed at 1.7e-2 for every dt (an O(deformation) model error)."""

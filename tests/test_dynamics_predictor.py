@@ -5,7 +5,7 @@ are the scheme's formulas written out here (S52, S53, S66)."""
 import jax.numpy as jnp
 import numpy as np
 
-from simsoft_jax.dynamics import memory as nm  # importing the package enables float64
+from simsoft_jax.solvers.dynamics import memory as nm  # importing the package enables float64
 
 RHO = 0.8
 ALPHA_M = (2 * RHO - 1) / (RHO + 1)

@@ -55,7 +55,7 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import dynamics as dy
+from simsoft_jax.solvers import dynamics as dy
 from conftest import SCENES_DIR
 
 scipy_integrate = pytest.importorskip("scipy.integrate")

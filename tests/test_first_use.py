@@ -51,10 +51,10 @@ def test_importing_the_package_does_not_import_jax_until_a_solver_is_used():
 
 
 @pytest.mark.parametrize("imports", [
-    "import jax\nfrom simsoft_jax.statics import solve_static",
-    "from simsoft_jax.statics import solve_static\nimport jax",
+    "import jax\nfrom simsoft_jax.solvers.statics import solve_static",
+    "from simsoft_jax.solvers.statics import solve_static\nimport jax",
     "import simsoft_jax as sj\nsj.solve_static\nimport jax",
-    "import jax, jax.numpy as jnp\njnp.zeros(1)\nimport simsoft_jax.lie",
+    "import jax, jax.numpy as jnp\njnp.zeros(1)\nimport simsoft_jax.math.lie",
 ])
 def test_float64_whatever_the_import_order(imports):
     """The solvers need float64: ``jax_enable_x64`` is on and new arrays are float64

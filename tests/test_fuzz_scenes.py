@@ -26,9 +26,9 @@ import pytest
 
 import simsoft_jax as sj
 from conftest import SCENES_DIR
-from simsoft_jax.dynamics import DynamicSettings
-from simsoft_jax.statics import settings_from_scene
-from simsoft_jax.status import Status
+from simsoft_jax.solvers.dynamics import DynamicSettings
+from simsoft_jax.solvers.statics import settings_from_scene
+from simsoft_jax.solvers.status import Status
 
 if sys.version_info >= (3, 11):
     import tomllib

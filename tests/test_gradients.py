@@ -18,7 +18,8 @@ import pytest
 import simsoft_jax as sj  # enables float64
 import jax
 import jax.numpy as jnp
-from simsoft_jax import assembly, lie, linalg
+from simsoft_jax.physics import assembly
+from simsoft_jax.math import lie, linalg
 
 K0 = {"EA": 1e4, "GAy": 5e3, "GAz": 5e3, "GJ": 0.8, "EIy": 2.0, "EIz": 1.0}
 F0 = [0.3, 1.0, -1.5]

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax.dynamics.driver import CHUNK_STEPS
+from simsoft_jax.solvers.dynamics.driver import CHUNK_STEPS
 
 DT = 1e-3
 T_CHUNK = CHUNK_STEPS * DT   # the end of the first chunk

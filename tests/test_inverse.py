@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax.inverse import _evaluator, node_indices
-from simsoft_jax.statics import as_traced
+from simsoft_jax.studies.inverse import _evaluator, node_indices
+from simsoft_jax.solvers.statics import as_traced
 
 TIGHT = sj.StaticSettings(tolerance=1e-12)
 NODES = [("arm", 4), ("arm", -1)]   # targets: middle and tip nodes
@@ -233,7 +233,7 @@ def test_least_squares_on_rosenbrock_with_a_bound():
     """The batched bounded least squares alone, on Rosenbrock's residuals
     r = (10 (u2 - u1^2), 1 - u1): minimum 0 at (1, 1); with u1 <= 0.5 the minimum is at
     the bound, (0.5, 0.25), cost 0.5 * 0.5^2, a stationary point of the box."""
-    from simsoft_jax.least_squares import Outcome, least_squares
+    from simsoft_jax.studies.least_squares import Outcome, least_squares
 
     def evaluate(U):
         u1, u2 = U[:, 0], U[:, 1]

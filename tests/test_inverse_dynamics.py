@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax.inverse_dynamics import tracking_residual
-from simsoft_jax.statics import as_traced
+from simsoft_jax.studies.inverse_dynamics import tracking_residual
+from simsoft_jax.solvers.statics import as_traced
 
 KNOTS = [0.0, 0.1, 0.2, 0.3, 0.4]
 SETTINGS = sj.DynamicSettings(dt=0.01, steps=40, save_every=2, tolerance=1e-12)

@@ -11,7 +11,7 @@ from scipy.optimize import fsolve
 
 import jax
 import simsoft_jax as sj
-from simsoft_jax.model import build_model
+from simsoft_jax.model.model import build_model
 
 L, E, NU, D = 1.0, 2.0e7, 0.5, 0.01
 

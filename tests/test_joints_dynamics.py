@@ -18,8 +18,8 @@ from scipy.special import ellipk
 import jax
 import jax.numpy as jnp
 import simsoft_jax as sj
-from simsoft_jax.dynamics import DynamicSettings, energy, simulate
-from simsoft_jax.model import build_model
+from simsoft_jax.solvers.dynamics import DynamicSettings, energy, simulate
+from simsoft_jax.model.model import build_model
 from conftest import REPO_ROOT
 
 

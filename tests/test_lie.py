@@ -1,4 +1,4 @@
-"""Tests for simsoft_jax.lie (spec: shared/spec/algorithm.md §0-§1).
+"""Tests for simsoft_jax.math.lie (spec: shared/spec/algorithm.md §0-§1).
 
 Every reference is computed here, independently of the module, in numpy extended precision
 (np.longdouble, eps ~1e-19): matrix exponentials by scaling-and-squaring + Taylor, tangent
@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation
 
 import jax
 import jax.numpy as jnp
-from simsoft_jax import geometry, lie  # importing the package enables float64
+from simsoft_jax.math import geometry, lie  # importing the package enables float64
 
 LD = np.longdouble
 

@@ -1,4 +1,4 @@
-"""Block linear algebra of mechanisms (:mod:`simsoft_jax.linalg`): chains on both paths
+"""Block linear algebra of mechanisms (:mod:`simsoft_jax.math.linalg`): chains on both paths
 (dense LU, block cyclic reduction), chains coupled through a Schur complement (random couplings, a
 weld between two rods, closed loops, no coupling), transposed solves and derivatives
 through ``implicit_solve_coupled``, all against dense NumPy solves of the assembled
@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from simsoft_jax import linalg
+from simsoft_jax.math import linalg
 
 LIMIT = linalg.DENSE_LIMIT_NODES
 
@@ -258,11 +258,11 @@ def test_grad_and_jvp_through_implicit_solve_coupled(n1, n2):
                                      (LIMIT + 4, (0,)), (LIMIT + 4, (0, 6, LIMIT + 3))])
 def test_identity_nodes_left_out_of_the_factorization(n, held):
     """Fully held nodes (identity rows and columns after
-    :func:`simsoft_jax.assembly.apply_constraints`) are left out of the chain's
+    :func:`simsoft_jax.physics.assembly.apply_constraints`) are left out of the chain's
     factorization (dense LU and block cyclic reduction): solves, transposed solves, several
     right-hand sides and a coupled system agree with NumPy's solve of the whole assembled
     matrix; so do the implicit-solve derivatives."""
-    from simsoft_jax.assembly import apply_constraints
+    from simsoft_jax.physics.assembly import apply_constraints
 
     rng = np.random.default_rng(7)
     mask = np.ones((n, 6))

@@ -6,7 +6,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from simsoft_jax import element, lie
+from simsoft_jax.physics import element
+from simsoft_jax.math import lie
 
 
 @pytest.mark.parametrize("angle", [0.0, 1e-7, 0.4, 1.7, 3.0])

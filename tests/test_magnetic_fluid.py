@@ -1,5 +1,5 @@
 """Magnetic actuation and fluid loads (the registered terms of
-:mod:`simsoft_jax.terms.registry`), against independent references:
+:mod:`simsoft_jax.physics.terms.registry`), against independent references:
 
 - the magnetic elastica: a clamped rod magnetized along its axis in a transverse field,
   ``EI theta'' = -m B cos(theta)``, against a shooting solution written here (second-order
@@ -217,7 +217,7 @@ def test_tangent_paths_agree_with_fields_in_statics_and_dynamics():
     with both registered terms agree to round-off; the static tangent matches central
     differences of the residual along the chart."""
     from test_tangent_paths import check_dynamic_paths, check_static_paths
-    from simsoft_jax import loads
+    from simsoft_jax.model import loads
 
     check_static_paths(sj.build_model(sj.Scene.from_dict(fields_scene("static"))))
     check_dynamic_paths(loads.loads_at(

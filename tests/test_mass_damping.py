@@ -17,10 +17,10 @@ import pytest
 from scipy.optimize import curve_fit
 
 import simsoft_jax as sj
-from simsoft_jax import linalg
-from simsoft_jax.dynamics import element_inertia
-from simsoft_jax.dynamics.residual import residual_and_iteration_matrix
-from simsoft_jax.dynamics.scheme import iteration_factors
+from simsoft_jax.math import linalg
+from simsoft_jax.solvers.dynamics import element_inertia
+from simsoft_jax.solvers.dynamics.residual import residual_and_iteration_matrix
+from simsoft_jax.solvers.dynamics.scheme import iteration_factors
 
 from test_one_model import dynamic_scene
 from test_tangent_paths import deformed

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import assembly, inertia, lie, linalg
-from simsoft_jax.terms import masses as mass_term
+from simsoft_jax.physics import assembly, inertia
+from simsoft_jax.math import lie, linalg
+from simsoft_jax.physics.terms import masses as mass_term
 
 from conftest import rot_x, rot_y, rot_z
 

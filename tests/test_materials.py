@@ -1,11 +1,11 @@
-"""Tests for simsoft_jax.materials: library values, G/nu relation, input validation."""
+"""Tests for simsoft_jax.scene.materials: library values, G/nu relation, input validation."""
 
 import dataclasses
 import math
 
 import pytest
 
-from simsoft_jax.materials import BUILTIN_MATERIALS, Material, get_material
+from simsoft_jax.scene.materials import BUILTIN_MATERIALS, Material, get_material
 
 
 @pytest.mark.parametrize("name, E, G, nu, density", [

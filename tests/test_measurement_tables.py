@@ -1,5 +1,5 @@
 """A data set's own table read as observations through a table map
-(simsoft_jax.measurements.read_table, ``simsoft-jax calibrate --table-map``): synthetic
+(simsoft_jax.studies.measurements.read_table, ``simsoft-jax calibrate --table-map``): synthetic
 tables in mm and degrees written from known stiffness factors (one wide, one long and not
 zeroed) are fitted back to 1e-6 from the command line, row filters and errors name what is
 wrong, every shipped map reads its shipped table as the table's own rows say (read here
@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import lie
-from simsoft_jax.calibration_groups import apply_group_scales, element_masks, parse_groups
+from simsoft_jax.math import lie
+from simsoft_jax.studies.calibration_groups import apply_group_scales, element_masks, parse_groups
 from simsoft_jax.cli import main
 from simsoft_jax.data_files import data_path
-from simsoft_jax.measurements import QuantityColumn, TableMap, load_table_map, read_table
-from simsoft_jax.section_tables import read_mass_table, read_stiffness_table
+from simsoft_jax.studies.measurements import QuantityColumn, TableMap, load_table_map, read_table
+from simsoft_jax.scene.section_tables import read_mass_table, read_stiffness_table
 
 from test_calibration_groups import strip
 

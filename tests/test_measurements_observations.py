@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax.calibration_groups import parse_groups, predict
-from simsoft_jax.measurements import observation_set
+from simsoft_jax.studies.calibration_groups import parse_groups, predict
+from simsoft_jax.studies.measurements import observation_set
 
 L, GJ, C = 0.5, 2.0, 0.04
 

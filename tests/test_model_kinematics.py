@@ -1,4 +1,4 @@
-"""Model building, element kinematics, element forces and assembly (simsoft_jax.model,
+"""Model building, element kinematics, element forces and assembly (simsoft_jax.model.model,
 geometry, kinematics, element, assembly); spec: shared/spec/scene-format.md and
 shared/spec/algorithm.md §3.1-§3.4, §3.6, §3.8 (S32-S44, S47, S50, S70).
 
@@ -20,7 +20,9 @@ from scipy.spatial.transform import Rotation
 import simsoft_jax as sj  # enables float64
 import jax
 import jax.numpy as jnp
-from simsoft_jax import assembly, element, kinematics, linalg
+from simsoft_jax.physics import assembly, element
+from simsoft_jax.analysis import kinematics
+from simsoft_jax.math import linalg
 from conftest import rot_z, skew
 
 # Load parts of a Model, None when the scene has no load of that kind (and gravity)

@@ -1,4 +1,4 @@
-"""Optional parts of a Model (simsoft_jax.parts): None when the scene lacks the term.
+"""Optional parts of a Model (simsoft_jax.model.parts): None when the scene lacks the term.
 
 * a part the scene lacks is None, and ``Model.replace`` refuses to give it a value with
   a ValueError naming the field;
@@ -17,7 +17,7 @@ import pytest
 import simsoft_jax as sj  # enables float64
 import jax
 import jax.numpy as jnp
-from simsoft_jax.parts import WHAT
+from simsoft_jax.model.parts import WHAT
 
 L, EI, RHOA, G = 0.5, 50.0, 0.1, 9.81
 

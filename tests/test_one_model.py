@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import lie
+from simsoft_jax.math import lie
 
 ROD = {"name": "arm", "elements": 4, "geometry": {"kind": "arc", "radius": 1.5, "angle_deg": 30},
        "stiffness": {"EA": 2e3, "GAy": 1e3, "GAz": 1.5e3, "GJ": 0.8, "EIy": 1.0, "EIz": 1.7},

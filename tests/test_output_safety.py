@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import cli, output
+from simsoft_jax import cli
+from simsoft_jax.pipeline import output
 from test_run_cli import F, euler_bernoulli_tip, scene_dict
 
 
@@ -35,7 +36,7 @@ def no_solve(monkeypatch):
     """Any solve fails the test: the output checks must come first."""
     def forbidden(*args, **kwargs):
         raise AssertionError("solved before the output path was checked")
-    monkeypatch.setattr("simsoft_jax.results.run", forbidden)
+    monkeypatch.setattr("simsoft_jax.pipeline.results.run", forbidden)
 
 
 def tip_z(path):
@@ -72,7 +73,7 @@ def test_existing_file_needs_force(scene_file, tmp_path, capsys, monkeypatch):
     out = tmp_path / "out.json"
     out.write_text("old content\n")
     with monkeypatch.context() as m:
-        m.setattr("simsoft_jax.results.run",
+        m.setattr("simsoft_jax.pipeline.results.run",
                   lambda *a, **k: pytest.fail("solved although the output exists"))
         assert cli.main(["run", str(scene_file), "-o", str(out)]) == 2
     err = capsys.readouterr().err
@@ -103,7 +104,7 @@ def test_failed_json_write_keeps_the_old_file(result, tmp_path, monkeypatch):
         if len(calls) == 5:   # the file written piece by piece: some pieces are out
             raise KeyboardInterrupt
         return dumps(*args, **kwargs)
-    monkeypatch.setattr("simsoft_jax.output.json.dumps", interrupted)
+    monkeypatch.setattr("simsoft_jax.pipeline.output.json.dumps", interrupted)
     with pytest.raises(KeyboardInterrupt):
         result.save(out)
     assert out.read_bytes() == before
@@ -123,14 +124,14 @@ def test_disk_full_mid_npz_keeps_the_old_file(result, tmp_path, monkeypatch):
     def disk_full(fh, **arrays):
         fh.write(b"PK\x03\x04 partial")
         raise OSError(28, "No space left on device")
-    monkeypatch.setattr("simsoft_jax.results.np.savez", disk_full)
+    monkeypatch.setattr("simsoft_jax.pipeline.results.np.savez", disk_full)
     with pytest.raises(OSError):
         result.save(out)
     assert out.read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["out.npz"]
     with np.load(out) as z:
         np.testing.assert_array_equal(z["beam/positions"], result.positions("beam"))
-    monkeypatch.setattr("simsoft_jax.results.np.savez", real_savez)
+    monkeypatch.setattr("simsoft_jax.pipeline.results.np.savez", real_savez)
 
 
 def test_disk_full_through_the_cli(scene_file, tmp_path, capsys, monkeypatch):
@@ -139,7 +140,7 @@ def test_disk_full_through_the_cli(scene_file, tmp_path, capsys, monkeypatch):
 
     def disk_full(fh, *args, **kwargs):
         raise OSError(28, "No space left on device")
-    monkeypatch.setattr("simsoft_jax.output.os.fsync", disk_full)
+    monkeypatch.setattr("simsoft_jax.pipeline.output.os.fsync", disk_full)
     assert cli.main(["run", str(scene_file), "-o", str(out), "--force"]) == 2
     err = capsys.readouterr().err
     assert "No space left on device" in err and "unchanged" in err

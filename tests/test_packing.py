@@ -1,12 +1,13 @@
-"""simsoft_jax.packing: program outputs as one float64 vector, rebuilt on the host."""
+"""simsoft_jax.solvers.packing: program outputs as one float64 vector, rebuilt on the host."""
 import jax
 import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import built_models, programs
-from simsoft_jax.packing import Layout, pack
-from simsoft_jax.statics import as_traced, settings_from_scene
+from simsoft_jax.model import built_models
+from simsoft_jax.pipeline import programs
+from simsoft_jax.solvers.packing import Layout, pack
+from simsoft_jax.solvers.statics import as_traced, settings_from_scene
 
 
 def test_round_trip_keeps_values_shapes_types_and_absent_fields():

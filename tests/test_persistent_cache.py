@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from conftest import arc
-from simsoft_jax import cli, compile_cache
+from simsoft_jax import cli
+from simsoft_jax.solvers import compile_cache
 
 # counts JAX's persistent-cache events around one command line run
 _COUNTING_RUN = """

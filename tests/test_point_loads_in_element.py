@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import assembly, lie
-from simsoft_jax.terms import element_state, point_in_element
+from simsoft_jax.physics import assembly
+from simsoft_jax.math import lie
+from simsoft_jax.physics.terms import element_state, point_in_element
 
 L, EI, GA = 1.0, 1.0, 1e4
 F = 1e-4          # small: the response is linear to ~1e-10 relative
@@ -157,10 +158,11 @@ def test_a_time_law_scales_a_load_inside_an_element():
 def test_dynamic_iteration_matrix_paths_agree():
     """``M beta' + C gamma' + K T(w)`` of both tangent paths, with dead and follower point
     loads inside an element (one on a ramp)."""
-    from simsoft_jax import linalg, loads
-    from simsoft_jax.dynamics import element_inertia
-    from simsoft_jax.dynamics.residual import residual_and_iteration_matrix
-    from simsoft_jax.dynamics.scheme import iteration_factors
+    from simsoft_jax.math import linalg
+    from simsoft_jax.model import loads
+    from simsoft_jax.solvers.dynamics import element_inertia
+    from simsoft_jax.solvers.dynamics.residual import residual_and_iteration_matrix
+    from simsoft_jax.solvers.dynamics.scheme import iteration_factors
     point = [{"kind": "force", "rod": "arm", "s": 0.3, "vector": [0.2, 5.0, -3.0]},
              {"kind": "moment", "rod": "arm", "s": 0.3, "vector": [0.3, -0.4, 0.2],
               "frame": "local", "profile": {"kind": "ramp", "t0": 0.0, "t1": 1.0}}]

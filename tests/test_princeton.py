@@ -1,4 +1,4 @@
-"""Princeton replay (simsoft_jax.princeton): load cases, the batched replay against
+"""Princeton replay (simsoft_jax.apps.princeton): load cases, the batched replay against
 unbatched solves of the physical set-up, the linear (Timoshenko) limit, eq. (112) and the
 measurement file; the ``simsoft-jax princeton`` command end to end."""
 import csv
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import princeton as pr
-from simsoft_jax import lie
+from simsoft_jax.apps import princeton as pr
+from simsoft_jax.math import lie
 from simsoft_jax.cli import main
 from conftest import SCENES_DIR
 

@@ -20,8 +20,8 @@ import pytest
 
 import simsoft_jax as sj
 from simsoft_jax.cli import main
-from simsoft_jax.output import write_atomic
-from simsoft_jax.statics import StaticSettings
+from simsoft_jax.pipeline.output import write_atomic
+from simsoft_jax.solvers.statics import StaticSettings
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 STIFF = {"EA": 2e3, "GAy": 1e3, "GAz": 1e3, "GJ": 0.4, "EIy": 0.5, "EIz": 0.5}
@@ -266,7 +266,7 @@ def test_figure_options_are_checked_before_solving(tmp_path, capsys, monkeypatch
                                                    value, message):
     """(was: checked only after the solve, a matplotlib traceback for a missing folder)
     The solve is never reached: ``run`` is replaced by a function that fails the test."""
-    import simsoft_jax.results as results
+    import simsoft_jax.pipeline.results as results
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(results, "run", lambda *a, **k: pytest.fail("solved"))
     (tmp_path / "s.json").write_text(json.dumps(static()))

@@ -21,12 +21,13 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import rod_pairs, statics
-from simsoft_jax.model import build_model
-from simsoft_jax.results import Result
-from simsoft_jax.scene import Scene
-from simsoft_jax.terms import rod_contact
-from simsoft_jax.terms.contact import SMOOTHING
+from simsoft_jax.couplings import rod_pairs
+from simsoft_jax.solvers import statics
+from simsoft_jax.model.model import build_model
+from simsoft_jax.pipeline.results import Result
+from simsoft_jax.scene.scene import Scene
+from simsoft_jax.physics.terms import rod_contact
+from simsoft_jax.physics.terms.contact import SMOOTHING
 
 N, L, R_C, EI, F = 4, 0.2, 0.005, 1.0, 10.0       # elements, m, m, N m^2, N
 POINTS = 4                                          # stations: sub-chords per element

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import rod_pairs
-from simsoft_jax.dynamics.rollout import energy
+from simsoft_jax.couplings import rod_pairs
+from simsoft_jax.solvers.dynamics.rollout import energy
 
 N, L, R_C, V0 = 4, 0.2, 0.005, 0.01           # elements, m, m, m/s
 RHO_TOP, RHO_BOTTOM = 2.0, 1.0                 # kg/m

@@ -1,4 +1,4 @@
-"""The host driver of ``sj.run`` (simsoft_jax.dynamics.driver): a run spanning several
+"""The host driver of ``sj.run`` (simsoft_jax.solvers.dynamics.driver): a run spanning several
 chunks of one compiled program, its packed outputs unpacked on the host, and the
 throw-away execution that follows compiling or loading the program.
 
@@ -10,7 +10,7 @@ frames unchanged; tests/test_time_limits.py), and ``sj.simulate`` on the same st
 import numpy as np
 
 import simsoft_jax as sj
-from simsoft_jax.dynamics import driver
+from simsoft_jax.solvers.dynamics import driver
 
 G, DT = 9.81, 1e-3
 

@@ -1,4 +1,4 @@
-"""Scene parsing and validation (simsoft_jax.scene): the scene-format.md contract."""
+"""Scene parsing and validation (simsoft_jax.scene.scene): the scene-format.md contract."""
 
 import copy
 import json
@@ -10,7 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from simsoft_jax.scene import Scene, load_scene, save_scene
+from simsoft_jax.scene.scene import Scene, load_scene, save_scene
 from conftest import REPO_ROOT, SCENES_DIR
 
 ROOT = REPO_ROOT
@@ -191,7 +191,7 @@ import sys, types
 pkg = types.ModuleType("simsoft_jax")
 pkg.__path__ = [{str(ROOT / "simsoft_jax")!r}]
 sys.modules["simsoft_jax"] = pkg
-import simsoft_jax.scene as sc
+import simsoft_jax.scene.scene as sc
 from pathlib import Path
 for p in sorted(Path({str(ROOT / "examples" / "scenes")!r}).glob("*")):
     if p.suffix in (".toml", ".json"):
@@ -226,7 +226,7 @@ def test_continuation_keys_reach_the_static_settings():
     """``solver.level_tolerance`` / ``max_load_step`` reach StaticSettings; absent, the
     largest increment is ``1/load_steps`` (the scene format's minimum continuation
     steps: :func:`statics.max_load_step` is None there)."""
-    from simsoft_jax.statics import settings_from_scene
+    from simsoft_jax.solvers.statics import settings_from_scene
     plain = settings_from_scene(Scene.from_dict(BASE).solver)
     assert plain.max_load_step is None and plain.level_tolerance == 1e-3
     given = {**BASE, "solver": {**BASE["solver"], "level_tolerance": 0.0, "max_load_step": 0.5}}

@@ -1,7 +1,7 @@
 """Full 6x6 section inertia with an offset centre of mass (``inertia = { matrix = ... }``,
-:func:`simsoft_jax.sections.inertia_matrix`): the diagonal path kept bit for bit, the
+:func:`simsoft_jax.scene.sections.inertia_matrix`): the diagonal path kept bit for bit, the
 kinetic energy of a rigid segment, the weight's twist of a cantilever whose centre of
-mass is off its axis (:mod:`simsoft_jax.terms.offset_gravity`), a free spinning rod
+mass is off its axis (:mod:`simsoft_jax.physics.terms.offset_gravity`), a free spinning rod
 falling under gravity against the rigid-body solution, both tangent paths, bad input."""
 import dataclasses
 
@@ -11,9 +11,12 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import assembly, inertia, lie, linalg, loads, sections
-from simsoft_jax.dynamics import element_inertia
-from simsoft_jax.terms import element_state, offset_gravity
+from simsoft_jax.physics import assembly, inertia
+from simsoft_jax.math import lie, linalg
+from simsoft_jax.model import loads
+from simsoft_jax.scene import sections
+from simsoft_jax.solvers.dynamics import element_inertia
+from simsoft_jax.physics.terms import element_state, offset_gravity
 
 from conftest import iteration_matrices, rot_x
 
@@ -152,7 +155,7 @@ def deformed(model, seed, size=0.1):
 
 
 def test_offset_weight_is_the_gradient_of_its_potential(offset_model):
-    """The nodal forces of :mod:`~simsoft_jax.terms.offset_gravity` at a configuration
+    """The nodal forces of :mod:`~simsoft_jax.physics.terms.offset_gravity` at a configuration
     with large rotations are the gradient (right perturbations of the nodal frames) of the
     potential of the weight's offset, written here from the helical interpolation
     ``R(s) = R_A exp(xi d)`` directly: ``-lam int rhoA g . R(s) c ds`` (3-point Gauss, the

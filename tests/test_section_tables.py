@@ -1,14 +1,14 @@
 """Stiffness and mass tables of beam data sets read into the section frame
-(simsoft_jax.section_tables): a permuted, sign-flipped table comes back exactly in the
+(simsoft_jax.scene.section_tables): a permuted, sign-flipped table comes back exactly in the
 section frame, the shipped Pazy tables agree with the hand mapping of the 4x4 data, and a
 cantilever built from a uniform table bends as P L^3 / 3EI."""
 import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import sections
+from simsoft_jax.scene import sections
 from simsoft_jax.data_files import data_path
-from simsoft_jax.section_tables import (BEAM4_COLUMNS, frame_matrix, read_mass_table,
+from simsoft_jax.scene.section_tables import (BEAM4_COLUMNS, frame_matrix, read_mass_table,
                                         read_stiffness_table)
 
 # section-frame values: [EA, GAy, GAz, GJ, EIy, EIz] and one coupling EA-EIz (eps_x, kappa_z)

@@ -1,4 +1,4 @@
-"""Tests for simsoft_jax.sections against independently computed closed forms and quadratures."""
+"""Tests for simsoft_jax.scene.sections against independently computed closed forms and quadratures."""
 
 import math
 
@@ -8,8 +8,8 @@ import scipy.sparse as sparse
 import scipy.sparse.linalg as sparse_linalg
 from scipy.integrate import dblquad
 
-from simsoft_jax.materials import Material, get_material
-from simsoft_jax.sections import (circle, custom_inertia, custom_stiffness, inertia_diagonal,
+from simsoft_jax.scene.materials import Material, get_material
+from simsoft_jax.scene.sections import (circle, custom_inertia, custom_stiffness, inertia_diagonal,
                                   rectangle, semicircle, stiffness_diagonal, tube,
                                   viscosity_diagonal)
 

@@ -3,7 +3,7 @@ with NumPy values."""
 import numpy as np
 import pytest
 
-from simsoft_jax.scene import Scene, load_scene, save_scene
+from simsoft_jax.scene.scene import Scene, load_scene, save_scene
 
 
 def numpy_scene():
@@ -58,7 +58,10 @@ import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
 import simsoft_jax as sj  # noqa: E402
-from simsoft_jax import assembly, lie, linalg, loads, sections  # noqa: E402
+from simsoft_jax.physics import assembly  # noqa: E402
+from simsoft_jax.math import lie, linalg  # noqa: E402
+from simsoft_jax.model import loads  # noqa: E402
+from simsoft_jax.scene import sections  # noqa: E402
 
 from conftest import iteration_matrices  # noqa: E402
 

@@ -1,4 +1,4 @@
-"""Static stability: negative eigenvalues of the constrained tangent (simsoft_jax.stability).
+"""Static stability: negative eigenvalues of the constrained tangent (simsoft_jax.solvers.stability).
 
 Reference: a clamped-free straight column of square section under a dead axial
 compressive tip force P. The straight shape is an equilibrium for any P; Euler's critical
@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import stability
-from simsoft_jax.assembly import residual_and_tangent
-from simsoft_jax.loads import full_loads
+from simsoft_jax.solvers import stability
+from simsoft_jax.physics.assembly import residual_and_tangent
+from simsoft_jax.model.loads import full_loads
 
 L, EI, ELEMENTS = 1.0, 1.0, 24
 P_CR = np.pi**2 * EI / (4 * L**2)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax.model import build_model
+from simsoft_jax.model.model import build_model
 
 L, EIY, GAZ, F = 1.0, 2.0, 1e3, 1e-4
 BENDING, SHEAR = F * L**3 / (48 * EIY), F * L / (4 * GAZ)

@@ -1,4 +1,4 @@
-"""Batched sweeps (simsoft_jax.sweeps): grid order, vmapped and warm-started static sweeps
+"""Batched sweeps (simsoft_jax.studies.sweeps): grid order, vmapped and warm-started static sweeps
 against single solves and the linear cantilever, a dynamic sweep against single rollouts,
 and input errors."""
 
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import sweeps
+from simsoft_jax.studies import sweeps
 from conftest import SCENES_DIR
 from sweeps_subprocess import L, strip_scene
 

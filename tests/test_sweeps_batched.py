@@ -1,4 +1,4 @@
-"""Batched, sharded and multi-process sweeps (simsoft_jax.sweeps, batched, sharding):
+"""Batched, sharded and multi-process sweeps (simsoft_jax.studies.sweeps, batched, sharding):
 every point equals its single solve (statics: same Newton iterations too), a failing point
 reports its status and cause and leaves the others alone, the small-load points follow
 the linear cantilever; in subprocesses, a sweep sharded over two host CPU devices (and
@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import Status, sweeps
+from simsoft_jax import Status
+from simsoft_jax.studies import sweeps
 from conftest import SCENES_DIR
 from sweeps_subprocess import POINTS, SCENE, L, vary
 

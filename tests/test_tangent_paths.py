@@ -8,10 +8,13 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax import assembly, drives, lie, linalg, loads
-from simsoft_jax.dynamics import element_inertia
-from simsoft_jax.dynamics.residual import residual_and_iteration_matrix
-from simsoft_jax.dynamics.scheme import iteration_factors
+from simsoft_jax.physics import assembly
+from simsoft_jax.couplings import drives
+from simsoft_jax.math import lie, linalg
+from simsoft_jax.model import loads
+from simsoft_jax.solvers.dynamics import element_inertia
+from simsoft_jax.solvers.dynamics.residual import residual_and_iteration_matrix
+from simsoft_jax.solvers.dynamics.scheme import iteration_factors
 
 from test_one_model import dynamic_scene, static_scene
 

@@ -16,7 +16,7 @@ import pytest
 import jax
 import jax.numpy as jnp
 import simsoft_jax as sj
-from simsoft_jax import tendon_control
+from simsoft_jax.solvers import tendon_control
 
 EA, GA, GJ, EI = 2e3, 1e3, 0.4, 0.5
 STIFFNESS = {"EA": EA, "GAy": GA, "GAz": GA, "GJ": GJ, "EIy": EI, "EIz": EI}

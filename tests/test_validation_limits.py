@@ -9,7 +9,7 @@ so the smallest accepted count is ceil(phi / 90 deg).
 import numpy as np
 import pytest
 
-from simsoft_jax.scene import MAX_ELEMENTS, Scene
+from simsoft_jax.scene.scene import MAX_ELEMENTS, Scene
 
 
 def scene(geometry, elements=4, kind="static", constraints=None, loads=()):

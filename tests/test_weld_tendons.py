@@ -19,8 +19,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import simsoft_jax as sj
-from simsoft_jax import tendon_control
-from simsoft_jax.model import build_model
+from simsoft_jax.solvers import tendon_control
+from simsoft_jax.model.model import build_model
 
 EA, GA, GJ, EI = 2e3, 1e3, 0.4, 0.5
 STIFFNESS = {"EA": EA, "GAy": GA, "GAz": GA, "GJ": GJ, "EIy": EI, "EIz": EI}

@@ -1,11 +1,11 @@
-"""simsoft_jax._xla.jit: the solver entry points compile with the package's XLA options
+"""simsoft_jax.math._xla.jit: the solver entry points compile with the package's XLA options
 (when this jaxlib accepts them) and give the same numbers as a plain ``jax.jit``."""
 import jax
 import numpy as np
 
 import simsoft_jax as sj
-from simsoft_jax import _xla
-from simsoft_jax.statics import static_program, as_traced
+from simsoft_jax.math import _xla
+from simsoft_jax.solvers.statics import static_program, as_traced
 
 
 def test_compiler_options_are_a_dict_accepted_by_this_jaxlib():

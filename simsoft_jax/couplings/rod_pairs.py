@@ -1,0 +1,267 @@
+"""Rod-rod and self contact in the static Newton system (``[contact] self = true``).
+
+The pair terms of :mod:`simsoft_jax.physics.terms.rod_contact` on the candidate pairs of
+:mod:`simsoft_jax.couplings.broad_phase` give the exact residual and the exact tangent. A pair of
+elements e, f couples the nodes of e with those of f, which are not chain neighbours, so
+the tangent is ``K = T + U W U^T``: ``T`` the block-tridiagonal chains (every term of
+the rods, plus each pair's blocks inside e and inside f), ``U`` (N,6,6n) the unit
+columns of the dofs of the n distinct nodes of the pairs and ``W`` (6n,6n) the pairs'
+cross blocks ``K_ef``, ``K_fe`` between those nodes. With ``y = W U^T x`` the Newton system
+``K x = -r`` is the bordered system
+
+    [[T, U], [W U^T, -I]] [x; y] = [-r; 0]
+
+solved by :func:`simsoft_jax.math.linalg.solve_coupled` (block cyclic reduction on the chains, a dense
+Schur complement of size 6n): an exact Newton step, and the exact implicit derivative
+(:mod:`simsoft_jax.solvers.statics`). ``P = [contact] max_pairs`` and the node capacity
+``2 P + 2`` (:func:`coupled_nodes`) are static; more candidate pairs or nodes than that
+make the residual NaN (the solve fails, status NONFINITE, never a wrong convergence).
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import broad_phase
+from ..physics.assembly import assemble_blocks, element_poses, rod_end_flags
+from ..physics.terms import rod_contact
+
+
+class Pairs(NamedTuple):
+    """Candidate pairs: element indices e, f (P,), active (P,) bool, overflow () bool,
+    and per pair the four nodes (P,4) (e's A, B, f's A, B)."""
+    e: jax.Array
+    f: jax.Array
+    active: jax.Array
+    overflow: jax.Array
+    nodes: jax.Array
+
+
+def _rod_of(structure):
+    """Static rod index of each element (E,)."""
+    return np.concatenate([np.full(info.elements, k) for k, info in enumerate(structure.rods)])
+
+
+def _arclength(structure, length):
+    """Arclength (m) of each element's start and end along its rod (E,), (E,)."""
+    starts = []
+    for info in structure.rods:
+        piece = length[info.first_element:info.first_element + info.elements]
+        starts.append(jnp.cumsum(piece) - piece)
+    s0 = jnp.concatenate(starts)
+    return s0, s0 + length
+
+
+def _joint_ends(structure):
+    """Static ``(element, at_end)`` (J,2) of both ends of each joint between two rod
+    nodes: an element of the node's rod that has it as its start (False) or end (True)."""
+    a = np.asarray(structure.element_nodes)
+    ends = []
+    for _, na, nb in structure.joints:
+        pair = []
+        for n in (na, nb):
+            starts, stops = np.nonzero(a == n)[0], np.nonzero(a + 1 == n)[0]
+            if starts.size + stops.size == 0:       # a body node: no element
+                break
+            pair.append((int(starts[0]), False) if starts.size else (int(stops[0]), True))
+        if len(pair) == 2:
+            ends.append(pair)
+    return ends
+
+
+def _joint_distances(structure, s0, s1):
+    """(E,J,2) arclength distance (m) of every element to both ends of each joint between
+    rod nodes (0 for the elements that have the node, inf off the node's rod); None
+    without such joints."""
+    ends = _joint_ends(structure)
+    if not ends:
+        return None
+    rod_of = _rod_of(structure)
+    out = []
+    for pair in ends:
+        sides = []
+        for element, at_end in pair:
+            s_node = s1[element] if at_end else s0[element]
+            d = jnp.maximum(0.0, jnp.maximum(s0 - s_node, s_node - s1))
+            sides.append(jnp.where(jnp.asarray(rod_of == rod_of[element]), d, jnp.inf))
+        out.append(jnp.stack(sides, axis=-1))
+    return jnp.stack(out, axis=1)
+
+
+def find_pairs(model, R, p) -> Pairs:
+    """The candidate element pairs at frames R (N,3,3), p (N,3)."""
+    s = model.structure
+    m = s.contact_points
+    X = jax.vmap(lambda RA, pA, RB, pB, L: rod_contact.stations(RA, pA, RB, pB, L, m))(
+        *element_poses(model, R, p), model.length)
+    # jnp: a model built on the host (NumPy leaves, sj.run) may be closed over in a traced
+    # function, where NumPy arrays cannot be indexed by the traced pair indices
+    reach = rod_contact.EXTENSION * jnp.asarray(model.length) / m
+    centre, radius = broad_phase.bounding_spheres(X, model.contact_radius, reach)
+    # the stations' largest distance from the chord: every sub-chord (extended) lies
+    # within ``bow + reach`` of the chord (extended by ``reach``)
+    chord = X[:, -1] - X[:, 0]
+    along = jnp.sum((X - X[:, :1]) * chord[:, None], -1) / jnp.sum(chord**2, -1)[:, None]
+    bow = jnp.sqrt(jnp.max(jnp.sum((X - X[:, :1] - along[..., None] * chord[:, None]) ** 2,
+                                   -1), 1))
+    margin = bow + reach + model.contact_radius
+    grow = reach / model.length
+
+    def near_pair(e, f):
+        def one(e, f):
+            _, _, dist = rod_contact.closest_points(
+                X[e, 0], X[e, -1], X[f, 0], X[f, -1], -grow[e], 1.0 + grow[e], -grow[f],
+                1.0 + grow[f])
+            return dist < margin[e] + margin[f]
+        return jax.vmap(one)(e.reshape(-1), f.reshape(-1)).reshape(e.shape)
+
+    rod_of = _rod_of(s)
+    s0, s1 = _arclength(s, model.length)
+    e, f, active, overflow = broad_phase.candidate_pairs(
+        centre, radius, near_pair, rod_of, s0, s1,
+        model.self_exclusion, s.contact_pairs, _joint_distances(s, s0, s1))
+    a = jnp.asarray(s.element_nodes)
+    nodes = jnp.stack([a[e], a[e] + 1, a[f], a[f] + 1], axis=1)
+    return Pairs(e, f, active, overflow, nodes)
+
+
+def _pair_args(model, R, p, pairs: Pairs):
+    s = model.structure
+    ends = jnp.asarray(rod_end_flags(s))
+    ef = jnp.stack([pairs.e, pairs.f], 1)
+    return ((R[pairs.nodes], p[pairs.nodes]), jnp.asarray(model.contact_radius)[ef],
+            jnp.asarray(model.contact_stiffness)[ef], jnp.asarray(model.length)[ef], ends[ef])
+
+
+def residual(model, R, p):
+    """The rod-rod contact residual (N,6) (held dofs zeroed; NaN on overflow)."""
+    s = model.structure
+    pairs = find_pairs(model, R, p)
+    m = s.contact_points
+
+    g = jax.vmap(lambda *a: rod_contact.pair_residual(*a, m))(
+        *_pair_args(model, R, p, pairs)) * pairs.active[:, None]
+    r = _scatter(s.n_nodes, pairs.nodes, g)
+    return jnp.where(pairs.overflow, jnp.nan, r) * s.free_mask()
+
+
+def _scatter(n_nodes, nodes, g):
+    return jnp.zeros((n_nodes, 6), g.dtype).at[nodes.reshape(-1)].add(g.reshape(-1, 6))
+
+
+class Coupling(NamedTuple):
+    """The bordered terms of :func:`system`: B = U (N,6,6n), C = W U^T (6n,N,6),
+    D = -I (6n,6n), n = :func:`coupled_nodes`."""
+    B: jax.Array
+    C: jax.Array
+    D: jax.Array
+
+
+def system(model, R, p, r, blocks, T=None):
+    """Add the rod-rod contact to a masked residual ``r`` (N,6) and block-tridiagonal
+    tangent ``blocks`` (held dofs already identity rows): returns ``(r, blocks,
+    Coupling)`` of the bordered Newton system (module docstring). ``T`` (N,6,6): the
+    maps ``T_SE3(w)`` of a dynamic step's increments ``w`` (the unknowns there), which
+    multiply each node's columns of the pairs' tangents (None: statics, identity)."""
+    s = model.structure
+    mask = s.free_mask()
+    pairs = find_pairs(model, R, p)
+    m = s.contact_points
+    g, k = jax.vmap(lambda *a: rod_contact.pair_residual_and_tangent(*a, m))(
+        *_pair_args(model, R, p, pairs))
+    if T is not None:
+        P = k.shape[0]
+        k = jnp.einsum("pqnj,pnjk->pqnk", k.reshape(P, 24, 4, 6),
+                       T[pairs.nodes]).reshape(P, 24, 24)
+    on = pairs.active.astype(p.dtype)
+    g, k = g * on[:, None], k * on[:, None, None]
+    r = r + jnp.where(pairs.overflow, jnp.nan, _scatter(s.n_nodes, pairs.nodes, g)) * mask
+    # blocks inside e and inside f join chain neighbours: into the chains
+    per_element = jnp.zeros((s.n_elements, 12, 12), p.dtype).at[pairs.e].add(
+        k[:, :12, :12]).at[pairs.f].add(k[:, 12:, 12:])
+    d, u, lo = assemble_blocks(s.n_nodes, s.element_nodes, per_element)
+    masked = (mask[:, :, None] * d * mask[:, None, :], mask[:-1, :, None] * u * mask[1:, None, :],
+              mask[1:, :, None] * lo * mask[:-1, None, :])
+    blocks = tuple(b + c for b, c in zip(blocks, masked))
+    # cross blocks (e's nodes with f's): W on the distinct nodes of the pairs, U their
+    # unit columns
+    n, cap = s.n_nodes, coupled_nodes(s)
+    listed = jnp.where(pairs.active[:, None], pairs.nodes, n)
+    distinct = jnp.unique(listed, size=listed.size, fill_value=n)
+    uniq = distinct[:cap] if distinct.size >= cap else jnp.concatenate(
+        [distinct, jnp.full(cap - distinct.size, n)])
+    crowded = jnp.sum(distinct < n) > cap
+    slot = jnp.searchsorted(uniq, pairs.nodes)                               # (P, 4)
+    rows = (6 * slot[:, :, None] + jnp.arange(6)).reshape(-1, 24)            # (P, 24)
+    W = jnp.zeros((6 * cap, 6 * cap), p.dtype)
+    W = W.at[rows[:, :12, None], rows[:, None, 12:]].add(k[:, :12, 12:])
+    W = W.at[rows[:, 12:, None], rows[:, None, :12]].add(k[:, 12:, :12])
+    real = uniq < n
+    node = jnp.repeat(jnp.where(real, uniq, 0), 6)                           # (6 cap,)
+    dof = jnp.tile(jnp.arange(6), cap)
+    unit = mask[node, dof] * jnp.repeat(real, 6)
+    U = jnp.zeros((n, 6, 6 * cap), p.dtype).at[node, dof, jnp.arange(6 * cap)].set(unit)
+    C = jnp.zeros((6 * cap, n, 6), p.dtype).at[:, node, dof].add(W * unit[None, :])
+    r = jnp.where(crowded, jnp.nan, r)
+    return r, blocks, Coupling(U, C, -jnp.eye(6 * cap, dtype=p.dtype))
+
+
+def coupled_nodes(structure) -> int:
+    """Capacity (static) of the distinct nodes the pairs couple: ``2 max_pairs + 2``
+    (pairs along a line contact share nodes); more make the residual NaN."""
+    return min(structure.n_nodes, 2 * structure.contact_pairs + 2)
+
+
+@jax.jit
+def _summary(model, R, p):
+    s = model.structure
+    pairs = find_pairs(model, R, p)
+    normal, force, pen = jax.vmap(
+        lambda *a: rod_contact.pair_summary(*a, s.contact_points))(
+        *_pair_args(model, R, p, pairs))
+    on = pairs.active
+    normal, force, pen = normal * on, force * on[:, None], pen * on
+    per_element = (jnp.zeros((s.n_elements, 3), p.dtype).at[pairs.e].add(force)
+                   .at[pairs.f].add(-force))
+    touching = (jnp.zeros(s.n_elements, bool).at[pairs.e].max(pen > 0.0)
+                .at[pairs.f].max(pen > 0.0))
+    return jnp.sum(normal), per_element, jnp.max(pen, initial=0.0), touching
+
+
+def report(model, R, p) -> dict:
+    """The rod-rod entry of the result's ``contacts`` at frames R (N,3,3), p (N,3):
+    ``normal_force`` (N, the sum over pairs of ``sum h h l psi'``), ``force`` (3,) N (the
+    total contact force on all rods: zero by Newton's third law), ``rod_force``
+    (``{rod: (3,)}`` N, world: the contact force on each rod), ``max_penetration`` (m)
+    and ``nodes`` (``{rod: [node, ...]}``: nodes of elements with a penetrating pair).
+    Frames (T,N,3,3), (T,N,3) of a trajectory give each with a leading time axis
+    (``nodes``: a list per time)."""
+    summary = jax.vmap(_summary, (None, 0, 0)) if p.ndim == 3 else _summary
+    normal, per_element, pen, touching = jax.device_get(summary(model, R, p))
+    s = model.structure
+    rod_force, nodes = {}, {}
+    for info in s.rods:
+        span = slice(info.first_element, info.first_element + info.elements)
+        rod_force[info.name] = per_element[..., span, :].sum(-2)
+        hits = touching[..., span].reshape(-1, info.elements)
+        per_time = []
+        for hit_elements in hits:
+            hit = np.zeros(info.nodes, bool)
+            hit[:-1] |= hit_elements
+            hit[1:] |= hit_elements
+            per_time.append(np.flatnonzero(hit).tolist())
+        nodes[info.name] = per_time if p.ndim == 3 else per_time[0]
+    return {"normal_force": normal, "force": per_element.sum(-2), "rod_force": rod_force,
+            "max_penetration": pen, "nodes": nodes}
+
+
+def energy(model, R, p):
+    """Penalty energy (J) of the rod-rod contact at frames R (N,3,3), p (N,3): the sum of
+    :func:`simsoft_jax.physics.terms.rod_contact.pair_energy` over the active candidate pairs."""
+    pairs = find_pairs(model, R, p)
+    m = model.structure.contact_points
+    each = jax.vmap(lambda *a: rod_contact.pair_energy(*a, m))(*_pair_args(model, R, p, pairs))
+    return jnp.sum(each * pairs.active)

@@ -1,0 +1,227 @@
+"""Contact of an element with rigid obstacles: a smooth penalty on the gap, looked for along
+the element's helical interpolation, and regularized Coulomb friction (dynamics).
+
+Where. The centreline point at ``xi`` in [0, 1] is the position part of
+``H_A exp(xi d)`` (spec S33): ``x(xi) = p_A + R_A T_SO3(xi d_w)^T (xi d_u)``; contact is
+looked for at the ``n`` Gauss-Legendre points of the element (``[contact]
+quadrature_points``), so a coarse rod cannot pass through an obstacle smaller than an
+element between its nodes, and at its two nodes (``xi = 0, 1``). The nodes carry weight
+only at a rod's two ends, the end caps: there the station stands for the rod's rounded
+end, a length ``r`` (the contact radius) of the line penalty, so a free end pushed into
+an obstacle meets it at the node instead of sinking until a Gauss point, a fraction of
+an element behind the end, touches (an end pushed with a force ``F`` sinks by
+``delta ~ F / (k r) + eps / 2``). At the other nodes the weight is 0: their stations
+count only in the reported penetration.
+
+Normal contact (penalty). With the obstacle's signed distance ``phi(x)``
+(:mod:`simsoft_jax.physics.obstacles`) and the rod's contact radius ``r``, the gap is
+``g = phi(x) - r`` and the penetration ``delta = -g``. The energy per unit length is the
+C2 penalty
+
+    psi(delta) = 0                                    delta <= 0
+               = k delta^3 / (6 eps)                  0 < delta < eps
+               = k (delta - eps/2)^2 / 2 + k eps^2/24 delta >= eps
+
+with ``k`` the penalty stiffness (N/m^2: the line load per metre of penetration, once past
+the smoothing width) and ``eps = SMOOTHING * r`` (a cubic start, so the force
+``psi'(delta)`` and its slope are continuous and Newton sees no kink). A line load ``q``
+(N/m) pressing the rod on an obstacle sinks it by ``delta ~ q/k + eps/2`` (or
+``sqrt(2 eps q/k)`` while ``delta < eps``). The element's energy is
+``sum_i c_i sum_k psi(delta_k(x(xi_i)))`` with the station weights ``c_i`` (m): ``L w_i``
+at the Gauss points (weights ``w_i`` on [0, 1], ``L`` the reference length), the cap
+lengths at the two nodes (:func:`station_weights`).
+
+Nodal forces. The right perturbations of the two nodal frames move the section at ``xi``
+by the twist ``N(xi, d) [dq_A; dq_B]`` (the velocity-field map, spec S38,
+:func:`simsoft_jax.physics.element.velocity_field_map`), so ``dx = R(xi) (N dq)_u``: the exact
+derivative of the energy in those perturbations is
+``sum_i c_i N_i^T [R_i^T (-psi'(delta) grad phi); 0]`` (residual side; the obstacle
+pushes along ``+grad phi``). Tangents by ``jax.jacfwd`` (:mod:`.autodiff` and
+:func:`simsoft_jax.physics.assembly.contact_and_tangent`).
+
+Friction (dynamics). The contact point moves with the centreline velocity
+``v = R(xi) (N(xi, d) v_e)_u`` (world), relative to the obstacle (translating with
+``v_o``) with ``v_r = v - v_o``; its part tangent to the obstacle
+``v_t = v_r - (v_r . n) n`` (``n = grad phi``) meets the regularized Coulomb line load
+``f_t = -mu f_n v_t / sqrt(|v_t|^2 + v_s^2)`` (``f_n = psi'(delta)``, ``mu`` the
+obstacle's coefficient, ``v_s`` the slip-velocity scale, ``[contact] slip_velocity``):
+viscous-like below ``v_s``, Coulomb's ``mu f_n`` opposite to the slip above it. It is
+not conservative; its tangent in the velocities is the C block of the iteration matrix.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import element, obstacles
+from ...math import lie
+
+SMOOTHING = 0.01   # eps / r: width of the cubic start of the penalty, fraction of the radius
+
+
+class ContactData(NamedTuple):
+    """An element's contact arrays: radius () m, stiffness () N/m^2 (penalty ``k``),
+    obstacles (K,11) parameter rows (:mod:`simsoft_jax.physics.obstacles`), friction (K,) Coulomb
+    coefficients, slip_velocity () m/s, velocity (K,3) m/s of the (translating)
+    obstacles, caps (2,) m the end-cap lengths of its nodes A and B (the radius at a
+    rod's end, else 0; None: no caps)."""
+    radius: jax.Array
+    stiffness: jax.Array
+    obstacles: jax.Array
+    friction: jax.Array
+    slip_velocity: jax.Array
+    velocity: jax.Array
+    caps: jax.Array = None
+
+
+def quadrature(n: int):
+    """Gauss-Legendre points (n,) and weights (n,) on [0, 1] (weights sum to 1)."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    return 0.5 * (x + 1.0), 0.5 * w
+
+
+def station_points(n: int):
+    """``xi`` (n+2,) of an element's contact stations: its ``n`` Gauss points, then its
+    nodes A (0) and B (1)."""
+    return np.concatenate([quadrature(n)[0], [0.0, 1.0]])
+
+
+def station_weights(length, caps, n: int):
+    """Weights (n+2,) m of the stations: ``L w_i`` at the Gauss points, the cap lengths
+    ``caps`` (2,) at the nodes (zeros when None)."""
+    w = jnp.asarray(quadrature(n)[1]) * length
+    return jnp.concatenate([w, jnp.zeros(2, w.dtype) if caps is None else caps])
+
+
+def penalty_slope(delta, k, eps):
+    """``psi'(delta)`` (N/m): the normal line load at penetration ``delta`` (m)."""
+    inside = jnp.clip(delta, 0.0, eps)
+    return jnp.where(delta < eps, k * inside**2 / (2.0 * eps), k * (delta - 0.5 * eps))
+
+
+def penalty(delta, k, eps):
+    """``psi(delta)`` (J/m), the penalty energy per unit length (module docstring)."""
+    inside = jnp.clip(delta, 0.0, eps)
+    return jnp.where(delta < eps, k * inside**3 / (6.0 * eps),
+                     0.5 * k * (delta - 0.5 * eps) ** 2 + k * eps**2 / 24.0)
+
+
+def centreline_point(RA, pA, d, xi):
+    """Rotation (3,3) and position (3,) of the section at ``xi``: ``H_A exp(xi d)``."""
+    return lie.compose_exp(RA, pA, xi * d)
+
+
+def _gap_and_normal(kind, params, radius, x):
+    phi, normal = jax.value_and_grad(lambda y: obstacles.signed_distance(kind, params, y))(x)
+    return phi - radius, normal
+
+
+def _point_contact(y, data: ContactData, kinds: tuple):
+    """Per obstacle at the centreline point ``y`` (3,): the penetration (K,) m, the normal
+    line load ``psi'`` (K,) N/m and the unit normal (K,3) (world)."""
+    eps = SMOOTHING * data.radius
+    pen, load, normals = [], [], []
+    for k, kind in enumerate(kinds):
+        g, nrm = _gap_and_normal(kind, data.obstacles[k], data.radius, y)
+        pen.append(-g)
+        load.append(penalty_slope(-g, data.stiffness, eps))
+        normals.append(nrm)
+    return jnp.stack(pen), jnp.stack(load), jnp.stack(normals)
+
+
+def stations(RA, pA, d, data: ContactData, kinds: tuple, n: int):
+    """Per station (:func:`station_points`, S = n+2) and obstacle: the penetration (S,K) m,
+    the normal line load ``psi'`` (S,K) N/m and the unit normals (S,K,3) (world), and the
+    section frames (S,3,3), (S,3) at the stations."""
+    xi = station_points(n)
+    R, x = jax.vmap(lambda t: centreline_point(RA, pA, d, t))(jnp.asarray(xi))
+    pen, load, normals = jax.vmap(lambda y: _point_contact(y, data, kinds))(x)
+    return pen, load, normals, R, x
+
+
+def force(el, data: ContactData, length, kinds: tuple, n: int, friction: bool = False):
+    """Nodal forces (12,) of the contact (and, when ``friction``, the friction) of one
+    element (:class:`~simsoft_jax.physics.terms.Element` ``el`` with ``el.pA``) with the obstacles
+    ``kinds`` (static), residual side (module docstring); ``length`` the element's
+    reference length (m), ``n`` the quadrature points."""
+    xi = station_points(n)
+    _, load, normals, R, _ = stations(el.RA, el.pA, el.d, data, kinds, n)
+    maps = jax.vmap(lambda t: element.velocity_field_map(t, el.d, el.P))(jnp.asarray(xi))
+    f = jnp.einsum("nk,nki->ni", load, normals)                  # world line load (n,3)
+    if friction:
+        v = jnp.einsum("nij,nj->ni", R, (maps @ el.ve)[:, :3])   # centreline velocity
+        v = v[:, None, :] - data.velocity[None]                    # relative (n,K,3)
+        vn = jnp.einsum("nki,nki->nk", normals, v)
+        vt = v - vn[..., None] * normals                           # (n,K,3)
+        slip = jnp.sqrt(jnp.sum(vt**2, -1) + data.slip_velocity**2)
+        f = f - jnp.einsum("nk,nki->ni", data.friction * load / slip, vt)
+    local = jnp.einsum("nji,nj->ni", R, f)                         # R^T f
+    wrench = jnp.concatenate([local, jnp.zeros_like(local)], axis=1)
+    return -jnp.einsum("n,nji,nj->i", station_weights(length, data.caps, n), maps, wrench)
+
+
+def force_and_tangent(el, data: ContactData, length, kinds: tuple, n: int):
+    """Frictionless contact forces (12,) of one element, as :func:`force`, and their
+    left-invariant tangent (12,12) in the right perturbations ``y`` of the two nodal frames.
+
+    With the world line load ``F(x) = sum_k psi'(delta_k) grad phi_k`` at a station's
+    point x and its section-frame value ``l_i = R_i^T F(x_i)``, the force is
+    ``f = -sum_i c_i N_i^T [l_i; 0]`` (``N_i`` the velocity-field map at the station,
+    spec S38). A perturbation y moves station i by the section twist ``N_i y``
+    (``dx = R_i du``, ``dR = R_i skew(dtheta)``), so ``dl_i = [R_i^T H_i R_i, skew(l_i)]
+    N_i y`` with ``H_i = dF/dx`` (3,3; ``jax.jacfwd`` in the 3 coordinates); ``N_i``
+    depends on the element only through its twist d, which moves by ``P y`` (S37). Hence
+    ``K = -sum_i c_i N_i[:3]^T [R_i^T H_i R_i, skew(l_i)] N_i - (d/dd sum_i c_i
+    N_i(d)[:3]^T l_i) P``, the last factor by ``jax.jacfwd`` in the 6 components of d at
+    fixed ``l_i``. The same tangent as ``jax.jacfwd`` of :func:`force` in the 12
+    perturbations (checked in the tests), at a fraction of its cost.
+    """
+    xi = jnp.asarray(station_points(n))
+    R, x = jax.vmap(lambda t: centreline_point(el.RA, el.pA, el.d, t))(xi)
+
+    def line_load(y):   # world line load (3,) N/m at the point y
+        _, load, normals = _point_contact(y, data, kinds)
+        return load @ normals
+
+    F, H = jax.vmap(lambda y: (line_load(y), jax.jacfwd(line_load)(y)))(x)
+    local = jnp.einsum("sji,sj->si", R, F)                                  # R^T F (S,3)
+    weights = station_weights(length, data.caps, n)
+
+    def pulled(d):      # sum_i c_i N_i(d)^T [l_i; 0] at fixed l_i (12,), by S38:
+        # N^T [l; 0] = [Ad_{exp(-xi d)}[:3]^T l; 0] + xi P(d)^T T(xi d)[:3]^T l
+        def station(t, c, load):
+            left = lie.adjoint_se3(lie.exp_se3(-t * d))[:3]
+            return c * (left.T @ load), (c * t) * (lie.tangent_se3(t * d)[:3].T @ load)
+
+        rigid, through = jax.vmap(station)(xi, weights, local)
+        return (jnp.concatenate([rigid.sum(0), jnp.zeros(6, d.dtype)])
+                + element.strain_map(d).T @ through.sum(0))
+
+    geometric, value = jax.jacfwd(lambda d: (pulled(d),) * 2, has_aux=True)(el.d)
+    maps = jax.vmap(lambda t: element.velocity_field_map(t, el.d, el.P))(xi)
+    moved = jnp.concatenate([jnp.einsum("sji,sjk,skl->sil", R, H, R),
+                             jax.vmap(lie.skew)(local)], axis=2)            # (S,3,6)
+    direct = jnp.einsum("s,sai,sab,sbj->ij", weights, maps[:, :3, :], moved, maps)
+    return -value, -(direct + geometric @ el.P)
+
+
+def energy(RA, pA, RB, pB, data: ContactData, length, kinds: tuple, n: int):
+    """Penalty energy (J) of one element given its two nodal frames (module docstring)."""
+    d = element.relative_twist(RA, pA, RB, pB)
+    pen, _, _, _, _ = stations(RA, pA, d, data, kinds, n)
+    eps = SMOOTHING * data.radius
+    weights = station_weights(length, data.caps, n)
+    return jnp.sum(weights[:, None] * penalty(pen, data.stiffness, eps))
+
+
+def summary(RA, pA, d, data: ContactData, length, kinds: tuple, n: int):
+    """Per obstacle (K,): the force of the obstacle on the element (K,3) N (world), its
+    normal part ``sum c psi'`` (K,) N, and the largest penetration (K,) m at any of its
+    stations, nodes included (0 if none)."""
+    pen, load, normals, _, _ = stations(RA, pA, d, data, kinds, n)
+    weights = station_weights(length, data.caps, n)[:, None]
+    return (jnp.einsum("nk,nki->ki", weights * load, normals),
+            jnp.sum(weights * load, 0), jnp.maximum(pen.max(0), 0.0))

@@ -1,0 +1,371 @@
+"""One generalized-alpha step: modified Newton on ``F(w) = 0`` (spec S66), its implicit
+derivative, and sub-stepping of a macro step on failure.
+
+The factorized iteration matrix ``S_t`` (S61) is kept in a :class:`~.memory.NewtonMemory`
+and reused over iterations and steps while the iteration contracts; the starting guess
+comes from :func:`~.memory.predicted_increment`. Held dofs (clamps, pins, drives) are
+eliminated: their ``w`` is prescribed (spec 4.5). Each failed Newton solve records why
+(:class:`~simsoft_jax.solvers.status.Status`: iteration limit, non-finite, off the rotation branch).
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from ...couplings import coupling
+from ..batched import any_lane, select
+from ...math.linalg import CoupledFactors, factorize_coupled, implicit_solve_coupled
+from ...couplings.drives import drive_turn, held_increments, slide_maps
+from ..newton import (RUNNING, capped, coupled_step, implicit, iterate, ladder, step_norm,
+                      weighted_norm)
+from ..status import Status
+from .contact_time import unresolved
+from .memory import NewtonMemory, predicted_increment, remember_step
+from .residual import step_functions
+from .scheme import alpha_parameters
+
+# A reused iteration matrix is kept while each correction is at most this fraction of the
+# previous one (linear contraction theta of modified Newton); otherwise it is rebuilt for
+# the next iteration (see newton_step for which corrections are kept).
+_REBUILD_CONTRACTION = 0.2
+# The distance-to-solution estimate |dw| theta / (1 - theta) of the convergence test is
+# used only below this contraction (|dw| itself above it).
+_CONTRACTION_LIMIT = 0.1
+# The matrix is also rebuilt at the start of the next step when the last correction of a
+# step contracted by more than this: a matrix that old would make the next step take a
+# third iteration and soon a rebuild mid-step (followed by a renewal: two builds).
+# Measured on the paper's helical scenes (300 steps; benchmarks/README.md, "Fewer matrix
+# builds"): with the 0.1 rebuild limit used before, renewal at 0.03 took the synthetic
+# scene from 894 to 778 Newton iterations and silicone from 1051 to 871 (0.01-0.05 all
+# gain); with it, a rebuild limit of 0.2 saves builds (synthetic 16.2 -> 15.0 ms).
+_RENEW_CONTRACTION = 0.03
+
+
+class _NewtonCarry(NamedTuple):
+    """Carry of :func:`newton_step`: the increment w, iterations so far, status (-1
+    running, else a Status code), the factors in use and whether to rebuild them (fresh),
+    the size of the last kept correction (previous), whether the matrix was rebuilt in
+    this step (rebuilt), the weighted residual norm at the last iterate, the joint
+    multipliers mu (M,), and the last observed contraction theta (0 before there is one)."""
+    w: jax.Array
+    iterations: jax.Array
+    status: jax.Array
+    factors: CoupledFactors
+    fresh: jax.Array
+    previous: jax.Array
+    rebuilt: jax.Array
+    residual: jax.Array
+    mu: jax.Array
+    theta: jax.Array
+
+
+class StepResult(NamedTuple):
+    """Outcome of one Newton solve: increment w (N,6), iterations, status (Status code),
+    residual (weighted norm at the last iterate, N), memory (with the matrix in use and,
+    after a converged solve, its joint multipliers)."""
+    w: jax.Array
+    iterations: jax.Array
+    status: jax.Array
+    residual: jax.Array
+    memory: NewtonMemory
+
+
+def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepResult:
+    """Modified Newton on F(w) = 0 (spec S66) from :func:`memory.predicted_increment`.
+
+    The factorized iteration matrix ``S_t`` (S61) is reused from earlier iterations and
+    earlier steps of the same size h; only the residual is evaluated at each iterate. A
+    correction from a reused matrix that is smaller than the previous one but more than
+    ``_REBUILD_CONTRACTION`` times it is applied and the matrix rebuilt at the new
+    iterate; one that does not contract, is not finite or leaves the rotation branch is
+    discarded and the matrix rebuilt at the current iterate; the matrix is also rebuilt
+    at the start of a step when the previous step rebuilt it or ended with a contraction
+    above ``_RENEW_CONTRACTION``. With a fresh matrix the iteration is exact Newton.
+    Approximating ``S_t`` changes only the convergence rate, not the solution (spec 4.4).
+    Converged when the estimated distance to the solution, ``|dw| theta / (1 - theta)``
+    with the observed contraction ``theta`` (``|dw|`` itself at the first iteration and
+    for ``theta`` above ``_CONTRACTION_LIMIT``), is below the tolerance and every nodal
+    rotation increment, held nodes' included, is below pi/2. Fails (status)
+    when a fresh matrix gives a non-finite correction (NONFINITE) or one that takes a
+    nodal rotation increment to pi/2 (OFF_BRANCH: the step turns a node too far to be
+    resolved; :func:`advance` sub-steps it; also, before any iteration, when a drive
+    turns by pi/2 or more in the step, :func:`~simsoft_jax.couplings.drives.drive_turn`), or at
+    ``max_iterations``
+    (MAX_ITERATIONS). With joints the unknowns are ``w`` and the
+    joint multipliers (index-3 form, Arnold & Bruls 2007: the constraints ``g(q_{n+1}) = 0``
+    and forces ``G^T mu`` at ``t_{n+1}``), solved in the bordered system of
+    :mod:`simsoft_jax.couplings.mechanisms`; converged also needs the joints to hold to the
+    tolerance at the current iterate.
+    """
+    fns = step_functions(model, inert, settings.rho_inf, state, h, settings.tangent)
+    mask = model.structure.free_mask()
+    alpha_m, alpha_f, _, beta = alpha_parameters(settings.rho_inf)
+    w0 = predicted_increment(state.v, state.vd, state.a, h, memory, alpha_m, alpha_f, beta)
+    w0 = jnp.where(mask > 0, w0, held_increments(model, state, fns.t1))
+    sliding = bool(model.structure.slide_drives)
+    identity = model.structure.identity_nodes()
+
+    def held(r_z):
+        """The constraints hold at the current iterate: the joints' gaps / char_length and
+        rotations, or the displacement-controlled tendons' length mismatches /
+        char_length, below the tolerance (with a reused matrix the corrections of ``w``
+        can shrink long before the constraints are met, so they are tested too)."""
+        violation = coupling.violation(model, r_z)
+        if violation is not None:
+            return violation[1] <= settings.tolerance
+        if r_z.size:
+            return jnp.max(jnp.abs(r_z)) <= settings.tolerance * model.char_length
+        return True
+
+    def body(c: _NewtonCarry) -> _NewtonCarry:
+        r, r_z = fns.system_residual(c.w, c.mu)  # once; the branch builds only the matrix
+        # a branch also under vmap (any_lane): lanes that keep their matrix select it back
+        factors = jax.lax.cond(
+            any_lane(c.fresh),
+            lambda w, mu, f: select(c.fresh,
+                                    factorize_coupled(*fns.system(w, mu)[1:5], identity), f),
+            lambda _, __, f: f, c.w, c.mu, c.factors)
+        dw, dmu = coupled_step(model, factors, r, r_z)
+        if sliding:  # back from slide unknowns to increments (spec: slides_along)
+            dw = jnp.einsum("nij,nj->ni", slide_maps(model, state.R, c.w)[1], dw)
+        # cap nodal rotation corrections at pi/4 (spec 4.7.6): keeps Newton on the branch
+        dw, dmu = capped(0.25 * jnp.pi, dw, dmu)
+        size = step_norm(model, dw)
+        finite = jnp.all(jnp.isfinite(dw))
+        off_branch = jnp.max(jnp.linalg.norm((c.w + dw)[:, 3:], axis=1)) > 0.5 * jnp.pi
+        bad = ~finite | off_branch
+        theta = size / c.previous
+        reject = ~c.fresh & (bad | (theta >= 1.0))
+        rebuild = reject | (~c.fresh & (theta > _REBUILD_CONTRACTION))
+        keep = reject | ~finite
+        w_new = jnp.where(keep, c.w, c.w + jnp.where(finite, dw, 0.0))
+        mu_new = jnp.where(keep, c.mu, c.mu + jnp.where(finite, dmu, 0.0))
+        estimate = jnp.where(jnp.isfinite(c.previous) & (theta < _CONTRACTION_LIMIT),
+                             size * theta / (1.0 - theta), size)
+        # an increment off the branch is never accepted, however well it solves F = 0: a
+        # step that turns a node by pi/2 or more is not resolved (sub-stepped or reported)
+        converged = (~reject & finite & ~off_branch & (estimate <= settings.tolerance)
+                     & held(r_z))
+        status = ladder(converged, ((c.fresh & ~finite, Status.NONFINITE),
+                                    (c.fresh & off_branch, Status.OFF_BRANCH),
+                                    (c.iterations + 1 >= settings.max_iterations,
+                                     Status.MAX_ITERATIONS)))
+        return _NewtonCarry(w_new, c.iterations + 1, status, factors, rebuild,
+                            jnp.where(reject, c.previous, size), c.rebuilt | rebuild,
+                            weighted_norm(model, r), mu_new,
+                            jnp.where(reject | ~jnp.isfinite(c.previous), c.theta, theta))
+
+    stale = memory.renew | (jnp.abs(memory.h - h) > 1e-9 * h)
+    # drives that turn by pi/2 or more in the step: off the branch before any iteration
+    start = (jnp.where(drive_turn(model, state.t, fns.t1) >= 0.5 * jnp.pi, Status.OFF_BRANCH,
+                       RUNNING) if model.structure.drive_nodes else RUNNING)
+    init = _NewtonCarry(w0, jnp.array(0), jnp.asarray(start), memory.factors, stale,
+                        jnp.array(jnp.inf), jnp.array(False), jnp.array(jnp.inf),
+                        memory.multipliers, jnp.array(0.0))
+    c = iterate(body, init)
+    memory = memory._replace(
+        factors=c.factors, h=jnp.asarray(h, jnp.float64),
+        renew=c.rebuilt | (c.theta > _RENEW_CONTRACTION),
+        multipliers=jnp.where(c.status == Status.CONVERGED, c.mu, memory.multipliers))
+    return StepResult(c.w, c.iterations, c.status, c.residual, memory)
+
+
+@dataclasses.dataclass(frozen=True)
+class StepProblem:
+    """One generalized-alpha step as an implicit problem for
+    :func:`simsoft_jax.solvers.newton.implicit`: ``params = (model, inert, settings, state, h)``,
+    ``solution = (w, mu)``, the step's increment (N,6) and multipliers (M,) solving
+    ``F(w, mu) = 0`` (spec S66; with joints the bordered system of
+    :mod:`simsoft_jax.couplings.mechanisms`): ``[dw_free; dmu] = -J^-1 dF``, the held dofs following
+    their prescribed motion (clamps, drives)."""
+
+    def prescribed(self, params, solution):
+        """The held dofs' prescribed increments (clamps, drives); a sliding drive's node
+        moves by its prescribed increment plus its solved slide ``ds`` (held fixed) along
+        the slide column ``b`` of :func:`~simsoft_jax.couplings.drives.slide_maps`, whose
+        derivative ``d w_h + db ds`` is its prescribed motion (the change of slide
+        ``d ds`` is solved)."""
+        model, _, _, state, h = params
+        held = 1.0 - model.structure.free_mask()
+        w_h = held_increments(model, state, state.t + h)
+        if model.structure.slide_drives:
+            b = slide_maps(model, state.R, w_h)[1][:, :3, 0]     # (N,3); used at slides
+            slide = jax.lax.stop_gradient(
+                jnp.sum((solution[0][:, :3] - w_h[:, :3]) * b, axis=1)
+                / jnp.maximum(jnp.sum(b * b, axis=1), 1e-300))
+            sliding = jnp.zeros(b.shape[0]).at[
+                jnp.asarray(model.structure.drive_nodes, int)[
+                    jnp.asarray(model.structure.slide_drives, int)]].set(1.0)
+            w_h = w_h.at[:, :3].add((sliding * slide)[:, None] * b)
+        return held * w_h, jnp.zeros_like(solution[1])
+
+    def residual(self, params, solution, delta):
+        model, inert, settings, state, h = params
+        return step_functions(model, inert, settings.rho_inf, state, h).system_residual(
+            solution[0] + delta[0], solution[1] + delta[1])
+
+    def linear_solve(self, params, solution, rhs):
+        model, inert, settings, state, h = params
+        system = step_functions(model, inert, settings.rho_inf, state, h,
+                                settings.tangent).system(*solution)
+        x, z = implicit_solve_coupled(system.blocks, system.B, system.C, system.D, *rhs,
+                                      model.structure.identity_nodes())
+        return coupling.split(model.structure, x, z)
+
+    def merge(self, params, solution, free, moved):
+        """The free dofs' increments, the held ones' prescribed motion, and for a sliding
+        drive its prescribed motion plus the solved change of slide along its direction
+        (the slide unknown is the node's first dof, mapped back as in
+        :func:`newton_step`)."""
+        model, state = params[0], params[3]
+        mask = model.structure.free_mask()
+        dw = jnp.where(mask > 0, free[0], moved[0])
+        if model.structure.slide_drives:
+            _, B, slide_mask = slide_maps(model, state.R, solution[0])
+            slid = jnp.where((mask == 0) & (slide_mask > 0), free[0], 0.0)
+            dw = dw + jnp.einsum("nij,nj->ni", B, slid)
+        return dw, free[1]
+
+    def push(self, params, solution, delta):
+        return delta
+
+    def valid(self, params):
+        return True
+
+
+class Attempt(NamedTuple):
+    """One step attempt: the new state, Newton iterations, status, residual, memory, and
+    the solved increment (N,6) with its multipliers (M,)."""
+    state: object
+    iterations: jax.Array
+    status: jax.Array
+    residual: jax.Array
+    memory: NewtonMemory
+    increment: jax.Array
+    multipliers: jax.Array
+
+
+def attempt(model, inert, settings, state, h, memory) -> Attempt:
+    """One generalized-alpha step of size h (no derivative: :func:`replay` gives it); an
+    accepted step becomes the predictor's history. A converged step that an impact makes
+    too long for its contact time ends with status ``CONTACT_UNRESOLVED``
+    (:func:`~.contact_time.unresolved`)."""
+    m, ine, se, st, hh, mem = jax.lax.stop_gradient((model, inert, settings, state, h, memory))
+    res = newton_step(m, ine, se, st, hh, mem)
+    state1 = step_functions(m, ine, se.rho_inf, st, hh).new_state(res.w)
+    # a converged step that an impact makes too long is refused (.contact_time)
+    status = jnp.where((res.status == Status.CONVERGED) & unresolved(m, st, state1, hh),
+                       Status.CONTACT_UNRESOLVED, res.status)
+    memory = remember_step(res.memory, st.vd, hh, status == Status.CONVERGED)
+    return Attempt(state1, res.iterations, status, res.residual, memory, res.w,
+                   res.memory.multipliers)
+
+
+class SubSteps(NamedTuple):
+    """The accepted sub-steps of one macro step, in order, for :func:`replay`: fractions
+    (K,) of dt (0 past ``count``), increments (K,N,6) and multipliers (K,M); K =
+    ``2**max_halvings``, the most sub-steps a macro step can take."""
+    fractions: jax.Array
+    increments: jax.Array
+    multipliers: jax.Array
+
+
+def replay(model, inert, settings, state, sub: SubSteps, count):
+    """The end state of a macro step from ``state`` through its ``count`` accepted
+    sub-steps ``sub`` (found by :func:`advance`), each increment carrying the implicit
+    derivative of its step (:class:`StepProblem`): the value is the solved one, and
+    ``jax.grad`` / ``jax.jvp`` through it are those of the sub-stepped solution. A step
+    taken whole (``count == 1``, the common case) is one increment; only a sub-stepped one
+    runs the scan over the slots, where unused slots are skipped (``lax.cond``: no work,
+    forward or backward)."""
+    def sub_step(st, fraction, w, mu):
+        h = fraction * settings.dt
+        w_d = implicit(StepProblem(), (model, inert, settings, st, h), (w, mu))[0]
+        return step_functions(model, inert, settings.rho_inf, st, h).new_state(w_d)
+
+    def slot(st, xs):
+        i, fraction, w, mu = xs
+        return jax.lax.cond(i < count, lambda st: sub_step(st, fraction, w, mu),
+                            lambda st: st, st), None
+
+    def whole(st):
+        return sub_step(st, sub.fractions[0], sub.increments[0], sub.multipliers[0])
+
+    def in_pieces(st):
+        k = sub.fractions.shape[0]
+        return jax.lax.scan(slot, st, (jnp.arange(k), sub.fractions, sub.increments,
+                                       sub.multipliers))[0]
+
+    return jax.lax.cond(count == 1, whole, in_pieces, state)
+
+
+class Advance(NamedTuple):
+    """One macro step: state, Newton iterations (all sub-steps), accepted sub-steps,
+    status (CONVERGED or STEP_TOO_SMALL), cause (last Newton failure, NOT_RUN if none),
+    residual (at the last attempt), memory; sub: the accepted sub-steps (:class:`SubSteps`,
+    only when asked for, else None)."""
+    state: object
+    iterations: jax.Array
+    substeps: jax.Array
+    status: jax.Array
+    cause: jax.Array
+    residual: jax.Array
+    memory: NewtonMemory
+    sub: SubSteps = None
+
+
+class _AdvanceCarry(NamedTuple):
+    state: object
+    h: jax.Array
+    iterations: jax.Array
+    substeps: jax.Array
+    failed: jax.Array
+    cause: jax.Array
+    residual: jax.Array
+    memory: NewtonMemory
+    sub: SubSteps
+
+
+def advance(model, inert, settings, state, memory, keep_substeps: bool = False) -> Advance:
+    """One macro step of size dt, with sub-stepping on failure (halve, up to max_halvings;
+    after a success the sub-step doubles again, up to dt). ``keep_substeps``: also record
+    the accepted sub-steps (:class:`SubSteps`) for :func:`replay`."""
+    dt = settings.dt
+    t_target = state.t + dt
+    h_min = dt / 2.0**settings.max_halvings
+
+    def body(c: _AdvanceCarry) -> _AdvanceCarry:
+        h_try = jnp.minimum(c.h, t_target - c.state.t)
+        att = attempt(model, inert, settings, c.state, h_try, c.memory)
+        ok = att.status == Status.CONVERGED
+        st = jax.tree_util.tree_map(lambda x, y: jnp.where(ok, x, y), att.state, c.state)
+        h = jnp.where(ok, jnp.minimum(2.0 * c.h, dt), 0.5 * c.h)
+        sub = c.sub
+        if keep_substeps:
+            slot = jnp.where(ok, c.substeps, sub.fractions.shape[0])   # out of range: dropped
+            sub = SubSteps(sub.fractions.at[slot].set(h_try / dt, mode="drop"),
+                           sub.increments.at[slot].set(att.increment, mode="drop"),
+                           sub.multipliers.at[slot].set(att.multipliers, mode="drop"))
+        return _AdvanceCarry(st, h, c.iterations + att.iterations, c.substeps + ok,
+                             c.failed | (h < h_min * (1 - 1e-12)),
+                             jnp.where(ok, c.cause, att.status), att.residual, att.memory,
+                             sub)
+
+    def running(c: _AdvanceCarry):
+        return (c.state.t < t_target - 1e-12 * dt) & ~c.failed
+
+    zero = jnp.array(0)
+    sub = None
+    if keep_substeps:
+        k = 2 ** settings.max_halvings
+        sub = SubSteps(jnp.zeros(k), jnp.zeros((k,) + state.p.shape[:1] + (6,)),
+                       jnp.zeros((k,) + memory.multipliers.shape))
+    c = jax.lax.while_loop(running, body, _AdvanceCarry(
+        state, jnp.asarray(dt, jnp.float64), zero, zero, jnp.array(False),
+        jnp.array(int(Status.NOT_RUN)), jnp.array(0.0), memory, sub))
+    status = jnp.where(c.failed, Status.STEP_TOO_SMALL, Status.CONVERGED)
+    return Advance(c.state, c.iterations, c.substeps, status, c.cause, c.residual, c.memory,
+                   c.sub)

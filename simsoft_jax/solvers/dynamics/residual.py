@@ -1,0 +1,195 @@
+"""The dynamic residual of one generalized-alpha step and its iteration matrix (spec S47,
+S61, S66).
+
+``F(w) = r(q(w), v(w), vdot(w), t_{n+1})``, the sum of the residual terms, with the exact
+iteration matrix ``M beta' + C_t gamma' + K_t T_SE3(w)``, both from the one assembler of
+:mod:`simsoft_jax.physics.assembly` (its element and node :class:`~simsoft_jax.physics.assembly.Blocks`
+``(r, K, C, M)``, by either tangent path), assembled into a block-tridiagonal matrix.
+Element inertia (field maps and mass matrices) is computed from the Model's sectional
+inertia inside the trace (:func:`element_inertia`), so a changed ``model.inertia`` changes
+everything it should, gradients included. :func:`step_functions` adds the couplings beside
+the chains (joints, rod-rod contact, displacement-controlled tendons, sliding drives).
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from ...couplings import coupling, rod_pairs
+from ...physics import inertia
+from ...math import lie
+from .. import tendon_control
+from ...physics.assembly import (apply_constraints, assemble_blocks, assemble_vector, element_blocks,
+                        node_blocks, residual_vector)
+from ...couplings.drives import reduce, slide_maps
+from ...model.loads import loads_at
+from ...model.model import Model
+from ...physics.terms import registry
+from .scheme import State, fields, iteration_factors
+
+
+class ElementInertia(NamedTuple):
+    """maps (E,G,6,12): velocity-field maps at the quadrature points; masses (E,12,12):
+    element mass matrices (see :mod:`simsoft_jax.physics.inertia`)."""
+    maps: jax.Array
+    masses: jax.Array
+
+
+def element_inertia(model: Model) -> ElementInertia:
+    """Field maps and mass matrices of all elements from ``model.inertia`` (traced), with
+    the inertia registered terms add (:func:`~simsoft_jax.physics.terms.registry.section_inertia`)."""
+    return ElementInertia(*inertia.element_inertia(model.d0, model.length,
+                                                   registry.section_inertia(model),
+                                                   model.structure.inertia_kind))
+
+
+def dynamic_residual(model: Model, inert: ElementInertia, R, p, v, vd, masked=True,
+                     contact=True):
+    """Global dynamic residual (N,6) (spec S47), held dofs zeroed (unless ``masked=False``),
+    rod-rod contact included unless ``contact=False`` (:mod:`simsoft_jax.couplings.rod_pairs`; scenes
+    with it have no sliding drive, the only caller of ``masked=False``). ``model`` holds
+    the loads at the time of evaluation (:func:`loads.loads_at`)."""
+    s = model.structure
+    r = residual_vector(model, 1.0, R, p, v, vd, inert)
+    if s.self_contact and contact:
+        r = r + rod_pairs.residual(model, R, p)
+    return r * s.free_mask() if masked else r
+
+
+def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p, slide=None,
+                                  tangent: str = "closed_form"):
+    """Residual (N,6) and block-tridiagonal ``M beta' + C_t gamma' + K_t T(w)`` (S61, S66)
+    from the assembler's blocks (:func:`simsoft_jax.physics.assembly.element_blocks`,
+    :func:`~simsoft_jax.physics.assembly.node_blocks`). ``slide = (C, B, mask)`` (see
+    :func:`drives.slide_maps`) reduces sliding drive nodes to their slide unknown before the
+    held dofs are eliminated. ``tangent``: the element-block path. Rod-rod contact is not
+    in it: :func:`step_functions` borders it on (:func:`simsoft_jax.couplings.rod_pairs.system`)."""
+    s = model.structure
+    n = s.n_nodes
+    a = jnp.asarray(s.element_nodes)
+    T = jax.vmap(lie.tangent_se3)(w)
+    el = element_blocks(model, 1.0, R, p, v, vd, inert, tangent)
+    TA, TB = T[a], T[a + 1]
+    K_el = jnp.concatenate([el.K[:, :, :6] @ TA, el.K[:, :, 6:] @ TB], axis=2)
+    r = assemble_vector(n, s.element_nodes, el.r)
+    diag, upper, lower = assemble_blocks(n, s.element_nodes,
+                                         el.M * beta_p + el.C * gamma_p + K_el)
+    nodes = node_blocks(model, 1.0, R, v, vd, dynamic=True, tangent=tangent)
+    if nodes is not None:
+        r, diag = r + nodes.r, diag + nodes.K @ T
+        if nodes.M is not None:
+            diag = diag + nodes.M * beta_p + nodes.C * gamma_p
+    if slide is not None:
+        C, B, mask = slide
+        r, blocks = reduce(C, B, r, (diag, upper, lower))
+        return apply_constraints(mask, r, blocks)
+    return apply_constraints(s.free_mask(), r, (diag, upper, lower))
+
+
+class StepFunctions(NamedTuple):
+    """``F(w)`` pieces of one step of size h from a state (see :func:`step_functions`):
+    new_state(w) -> State; residual(w) (N,6), held dofs zeroed; newton_residual(w): the
+    residual of residual_and_matrix (sliding drives reduced), without the matrix;
+    residual_and_matrix(w) -> (residual, blocks); t1: the time at the end of the step.
+    With multipliers ``mu`` (M,) (:func:`border_sizes`): the joint multipliers
+    (:mod:`simsoft_jax.couplings.mechanisms`), or the tensions of displacement-controlled tendons
+    (the multipliers of their length constraints, :mod:`simsoft_jax.solvers.tendon_control`), or
+    none: system_residual(w, mu) -> (r (N,6), r_z (m,)), the Newton residual with the
+    joints' forces and constraints (or the tendons' forces and length mismatches, m) at
+    ``t1``; system(w, mu) -> the bordered iteration matrix and residual
+    (:class:`~simsoft_jax.couplings.mechanisms.Coupled`, empty couplings without either)."""
+    new_state: object
+    residual: object
+    newton_residual: object
+    residual_and_matrix: object
+    system_residual: object
+    system: object
+    t1: jax.Array
+
+
+def border_sizes(structure) -> tuple[int, int]:
+    """``(m, M)``: the unknowns beside the rods' chains in a dynamic step and how many of
+    them are multipliers: those of the couplings (:func:`simsoft_jax.couplings.coupling.border_sizes`:
+    joints or rod-rod contact), or one tension per displacement-controlled tendon (the
+    scene refuses the tendons with a coupling in one dynamic scene)."""
+    k = len(tendon_control.displaced(structure))
+    return (k, k) if k else coupling.border_sizes(structure)
+
+
+def step_functions(model, inert, rho_inf, state: State, h,
+                   tangent: str = "closed_form") -> StepFunctions:
+    """F(w) pieces for one step of size h from ``state`` (spec S66); ``tangent`` picks the
+    iteration matrix's element-block path."""
+    beta_p, gamma_p = iteration_factors(rho_inf, h)
+    t1 = state.t + h
+    loaded = loads_at(model, t1)
+    sliding = bool(model.structure.slide_drives)
+
+    def new_state(w):
+        a1, v1, vd1 = fields(rho_inf, state, w, h)
+        R1, p1 = jax.vmap(lie.compose_exp)(state.R, state.p, w)
+        return State(R1, p1, v1, vd1, a1, t1)
+
+    def residual(w, contact=True):
+        s1 = new_state(w)
+        return dynamic_residual(loaded, inert, s1.R, s1.p, s1.v, s1.vd, contact=contact)
+
+    def newton_residual(w, contact=True):
+        if not sliding:
+            return residual(w, contact)
+        s1 = new_state(w)
+        C, _, mask = slide_maps(model, state.R, w)
+        r = dynamic_residual(loaded, inert, s1.R, s1.p, s1.v, s1.vd, masked=False,
+                             contact=contact)
+        return jnp.einsum("nij,nj->ni", C, r) * mask
+
+    def residual_and_matrix(w):
+        s1 = new_state(w)
+        slide = slide_maps(model, state.R, w) if sliding else None
+        return residual_and_iteration_matrix(loaded, inert, s1.R, s1.p, s1.v, s1.vd, w,
+                                             beta_p, gamma_p, slide, tangent)
+
+    displaced = jnp.asarray(tendon_control.displaced(model.structure), dtype=int)
+
+    def pulled(mu):
+        """``loaded`` with the tensions ``mu`` of the displacement-controlled tendons."""
+        return loaded.replace(tendon_tension=loaded.tendon_tension.at[displaced].set(mu))
+
+    def length_mismatch(w):
+        """Length changes minus the prescribed ones at ``t1`` (K,), m."""
+        s1 = new_state(w)
+        target = model.tendon_displacement[displaced] * model.tendon_law.scales(t1)[displaced]
+        return tendon_control.length_changes(model, s1.R, s1.p)[displaced] - target
+
+    def system_residual(w, mu):
+        if displaced.size:
+            s1 = new_state(w)
+            return (dynamic_residual(pulled(mu), inert, s1.R, s1.p, s1.v, s1.vd),
+                    length_mismatch(w))
+        r = newton_residual(w, contact=False)
+        if not coupling.present(model.structure):
+            return r, mu
+        s1 = new_state(w)
+        return coupling.coupled_residual(loaded, s1.R, s1.p, mu, r)
+
+    def system(w, mu):
+        if displaced.size:   # the border: tendon forces per unit tension, length gradients
+            s1 = new_state(w)
+            r, blocks = residual_and_iteration_matrix(pulled(mu), inert, s1.R, s1.p, s1.v,
+                                                      s1.vd, w, beta_p, gamma_p, None, tangent)
+            B = jax.jacfwd(lambda t: dynamic_residual(pulled(t), inert, s1.R, s1.p, s1.v,
+                                                      s1.vd))(mu)
+            C = jax.jacrev(length_mismatch)(w) * model.structure.free_mask()
+            return coupling.Coupled(r, blocks, B, C, jnp.zeros((mu.size,) * 2, r.dtype),
+                                      length_mismatch(w))
+        r, blocks = residual_and_matrix(w)
+        if not coupling.present(model.structure):
+            return coupling.couple(loaded, None, None, mu, r, blocks)
+        s1 = new_state(w)
+        return coupling.couple(loaded, s1.R, s1.p, mu, r, blocks,
+                               jax.vmap(lie.tangent_se3)(w))
+
+    return StepFunctions(new_state, residual, newton_residual, residual_and_matrix,
+                         system_residual, system, t1)

@@ -1,0 +1,355 @@
+"""Static equilibrium on SE(3)^N: Newton with load continuation and line search, and
+gradients of the equilibrium by the implicit function theorem (spec algorithm.md section 5).
+
+``solve_static(model)`` is pure and jit-compiled once per model structure: the whole
+continuation (adaptive load steps, Newton iterations, backtracking) runs inside
+``lax.while_loop``. Its output is differentiable with respect to every array of the Model
+(stiffness, loads, gravity, reference geometry) in forward and reverse mode: the Newton
+iterations are not unrolled; the tangent of the converged solution is
+``dxi = -K_t^-1 (dr/dparams . dparams)`` (spec section 5, last item), solved with the same
+block-tridiagonal tangent through ``lax.custom_linear_solve`` (its transpose for reverse mode).
+
+The package: :mod:`.settings` (:class:`StaticSettings`, :class:`Equilibrium`),
+:mod:`.newton` (one Newton solve at a load level), :mod:`.branch` (the stability watch
+between load levels that keeps the continuation on the stable branch past a critical
+load), and here the load continuation, the implicit derivative and :func:`solve_static`.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+import numpy as np
+
+from .. import compile_cache, tendon_control
+from ...couplings import coupling, mechanisms
+from ...math import lie
+from ...math._xla import jit, traced
+from ...physics.assembly import residual, residual_and_tangent
+from ...math.linalg import implicit_solve_coupled
+from ...model.loads import full_loads
+from ...model.model import Model
+from ..newton import RUNNING, implicit, step_norm, weighted_norm  # noqa: F401
+from ..status import Status, raise_if_failed
+# the package's names, re-exported (batched sweeps, the dynamics, results import them here)
+from . import branch
+from .newton import (NewtonState, newton_solve, no_tangent, update_frames,  # noqa: F401
+                     level_tolerance, load_scale, max_load_step, newton_outcome, newton_pass,
+                     newton_start)
+from .settings import Equilibrium, StaticSettings, as_traced, settings_from_scene  # noqa: F401
+
+
+def _secant(R, p, R_prev, p_prev, ratio, kick):
+    """Lie-group secant predictor ``H exp(ratio d + kick)`` per node (spec 5), with the
+    last step's increment ``d = log(H_prev^-1 H)`` and a branch-switching move ``kick``
+    (N,6) (zero but right after a switch, :mod:`.branch`): ``(R, p, d)``."""
+    def one(Ri, pi, Rq, pq, k):
+        d = lie.log_se3(lie.relative_pose(Rq, pq, Ri, pi))
+        return lie.compose_exp(Ri, pi, ratio * d + k) + (d,)
+    return jax.vmap(one)(R, p, R_prev, p_prev, kick)
+
+
+class ContinuationState(NamedTuple):
+    """Carry of :func:`_continuation`: the last accepted frames (R, p) at load level lam,
+    the ones before (R_prev, p_prev at lam_prev) for the secant predictor, the next load
+    increment dlam, counters, the residual at the last accepted level, and the status of
+    the last failed Newton solve (cause); y, y_prev: the joint multipliers at lam and
+    lam_prev; tangent: the chains' tangent blocks at (R, p) (zero before a level is
+    accepted); stable: the tangent at the last accepted level is positive definite (False
+    before one is accepted: not known); kick: the branch-switching move (N,6) added to
+    the next trial's prediction (zero but right after a switch); kicked: a switch was
+    tried since the last accepted level (:mod:`.branch`)."""
+    R: jax.Array
+    p: jax.Array
+    R_prev: jax.Array
+    p_prev: jax.Array
+    y: jax.Array
+    y_prev: jax.Array
+    lam: jax.Array
+    lam_prev: jax.Array
+    dlam: jax.Array
+    accepted: jax.Array
+    failures: jax.Array
+    iterations: jax.Array
+    attempts: jax.Array
+    residual: jax.Array
+    cause: jax.Array
+    tangent: tuple
+    stable: jax.Array
+    kick: jax.Array
+    kicked: jax.Array
+
+
+def trial_level(c: ContinuationState):
+    """The next load level of the continuation, the secant prediction of its frames
+    (moved by ``c.kick`` after a branch switch) and joint multipliers, and the last load
+    step's increment ``d`` (N,6) (body-frame twists ``log(H_prev^-1 H)``, for
+    :func:`after_newton`): ``(lam_try, R, p, y, d)``."""
+    lam_try = c.lam + c.dlam
+    lam_try = jnp.where(lam_try > 1.0 - 1e-9, 1.0, lam_try)  # no sliver step from round-off
+    ratio = (lam_try - c.lam) / jnp.maximum(c.lam - c.lam_prev, 1e-300)
+    ratio = jnp.where(c.accepted >= 1, ratio, 0.0)
+    Rs, ps, d = _secant(c.R, c.p, c.R_prev, c.p_prev, ratio, c.kick)
+    return lam_try, Rs, ps, c.y + ratio * (c.y - c.y_prev), d
+
+
+def after_newton(model: Model, settings: StaticSettings, c: ContinuationState, d, lam_try,
+                 R, p, y, its, res, status, tangent, positive) -> ContinuationState:
+    """The continuation carry after the Newton solve at ``lam_try`` ended with ``status``:
+    a converged level is accepted and the increment grows by 1.5 after an easy solve (fewer
+    than 5 steps), up to :func:`max_load_step`; a failed one halves the increment. A level
+    that converged to an unstable state right after a stable one is refused
+    (:mod:`.branch`): the increment is halved, and at its smallest the level is tried
+    once more from a prediction moved toward the stable branch (along the critical mode,
+    to the side of the last load step's increment ``d`` (N,6) of :func:`trial_level`);
+    after that try it is accepted. The other arguments are :func:`newton_outcome`'s."""
+    converged = status == Status.CONVERGED
+    stable_now, lost, kick = _watch(model, c, d, converged, tangent, positive)
+    dlam_min = settings.min_step_fraction / settings.load_steps
+    refine = lost & (0.5 * c.dlam >= dlam_min)
+    switch = lost & ~refine & ~c.kicked & jnp.any(kick != 0.0)
+    ok = converged & ~refine & ~switch
+    grow = jnp.where(its < 5, 1.5, 1.0)
+    keep = lambda new, old: jnp.where(ok, new, old)  # noqa: E731
+    return ContinuationState(
+        R=keep(R, c.R), p=keep(p, c.p), R_prev=keep(c.R, c.R_prev),
+        p_prev=keep(c.p, c.p_prev), y=keep(y, c.y), y_prev=keep(c.y, c.y_prev),
+        lam_prev=keep(c.lam, c.lam_prev),
+        lam=keep(lam_try, c.lam),
+        dlam=jnp.where(ok, jnp.minimum(c.dlam * grow, max_load_step(model, settings)),
+                       jnp.where(switch, c.dlam, 0.5 * c.dlam)),
+        accepted=c.accepted + ok, failures=c.failures + (~ok),
+        iterations=c.iterations + its, attempts=c.attempts + 1,
+        residual=keep(res, c.residual), cause=jnp.where(ok | converged, c.cause, status),
+        tangent=jax.tree_util.tree_map(keep, tangent, c.tangent),
+        stable=keep(stable_now, c.stable), kick=jnp.where(switch, kick, 0.0),
+        kicked=~ok & (c.kicked | switch))
+
+
+def _watch(model: Model, c: ContinuationState, d, converged, tangent, positive):
+    """``(stable, lost, kick)`` after a Newton solve that ended with tangent blocks
+    ``tangent`` (:mod:`.branch`): whether that tangent is positive definite (``positive``,
+    read from the Newton solve's factorization, where the tangent at an equilibrium is
+    symmetric, else tested here), whether a converged solve lost the stability of the
+    last accepted level, and the branch-switching move (N,6) for a lost one, to the side
+    of the last load step's increment ``d`` (N,6). The test runs only when some (batched)
+    lane converged, the move only when some lane lost stability."""
+    from ..batched import any_lane   # batched imports this package
+
+    zero = jnp.zeros_like(c.kick)
+    if not branch.watched(model):
+        return c.stable, jnp.array(False), zero
+
+    if not branch.symmetric_at_equilibrium(model):
+        positive = jax.lax.cond(any_lane(converged), lambda: branch.stable(tangent),
+                                lambda: c.stable)
+    lost = converged & c.stable & ~positive
+    kick = jax.lax.cond(any_lane(lost), lambda: branch.critical_kick(model, tangent, d),
+                        lambda: zero)
+    return positive, lost, kick
+
+
+def continuing(settings: StaticSettings, c: ContinuationState):
+    """Whether the continuation goes on: loads not reached, increment above its minimum
+    (``min_step_fraction / load_steps``), attempts left."""
+    dlam_min = (1.0 / settings.load_steps) * settings.min_step_fraction
+    return (c.lam < 1.0) & (c.dlam >= dlam_min) & (c.attempts < settings.max_attempts)
+
+
+def continuation_start(model: Model, settings: StaticSettings) -> ContinuationState:
+    """The continuation carry at load level 0 (the start frames of ``model``)."""
+    zero = jnp.array(0)
+    y = jnp.zeros(mechanisms.multiplier_count(model.structure), model.p0.dtype)
+    return ContinuationState(
+        R=model.R0, p=model.p0, R_prev=model.R0, p_prev=model.p0, y=y, y_prev=y,
+        lam=jnp.array(0.0),
+        lam_prev=jnp.array(0.0), dlam=jnp.asarray(1.0 / settings.load_steps, jnp.float64),
+        accepted=zero, failures=zero, iterations=zero, attempts=zero,
+        residual=jnp.array(jnp.inf), cause=jnp.array(int(Status.NOT_RUN)),
+        tangent=no_tangent(model.p0), stable=jnp.array(False),
+        kick=jnp.zeros(model.p0.shape[:1] + (6,), model.p0.dtype), kicked=jnp.array(False))
+
+
+def continuation_result(settings: StaticSettings, c: ContinuationState) -> Equilibrium:
+    """The :class:`Equilibrium` of a finished continuation carry."""
+    converged = c.lam >= 1.0
+    status = jnp.where(converged, Status.CONVERGED,
+                       jnp.where(c.attempts >= settings.max_attempts, Status.MAX_ATTEMPTS,
+                                 Status.STEP_TOO_SMALL))
+    return Equilibrium(c.R, c.p, converged, c.iterations, c.residual, c.lam, c.accepted,
+                       c.failures, status, c.cause, c.y if c.y.size else None,
+                       previous=(c.R_prev, c.p_prev), tangent=c.tangent)
+
+
+def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
+    """Adaptive load continuation lam: 0 -> 1 with Newton at each level (spec section 5)."""
+    ref = load_scale(model)
+
+    def body(c: ContinuationState) -> ContinuationState:
+        lam_try, Rs, ps, ys, d = trial_level(c)
+        outcome = newton_solve(model, settings, Rs, ps, ys, lam_try, ref, (c.R, c.p))
+        return after_newton(model, settings, c, d, lam_try, *outcome)
+
+    c = jax.lax.while_loop(lambda c: continuing(settings, c), body,
+                           continuation_start(model, settings))
+    return continuation_result(settings, c)
+
+
+@dataclasses.dataclass(frozen=True)
+class EquilibriumProblem:
+    """The static equilibrium as an implicit problem for :func:`simsoft_jax.solvers.newton.implicit`
+    (spec section 5): ``params = (model, converged, previous)``, ``solution = (R, p, y)``
+    (frames and joint multipliers), increments ``(dx (N,6), dy (M,))`` on the right of the
+    frames. Held dofs follow the start frames ``model.R0, model.p0`` (a clamp holds its
+    node there). With quasi-static friction (``previous``: the frames of the level before
+    the last, else None) the derivative is that of the last level's equilibrium with
+    ``previous`` held fixed: the history of the earlier levels is not differentiated
+    (exact for stations sliding in a direction the parameters do not turn, as the
+    friction (F1) is then ``mu f_n`` whatever the slip's size; an approximation for
+    sticking stations). ``tangent``: the tangent path of the solve."""
+    tangent: str
+
+    def prescribed(self, params, solution):
+        """An increment whose derivative in the model is the held dofs' motion (zero on
+        the free dofs): translations ``R^T dp0``, rotations ``vee(R^T dR0)`` (its value
+        is not used)."""
+        model = params[0]
+        R, _, y = solution
+        held = 1.0 - model.structure.free_mask()
+        A = jnp.einsum("nji,njk->nik", R, model.R0)
+        rot = 0.5 * jnp.stack([A[:, 2, 1] - A[:, 1, 2], A[:, 0, 2] - A[:, 2, 0],
+                               A[:, 1, 0] - A[:, 0, 1]], axis=1)
+        moved = jnp.concatenate([jnp.einsum("nji,nj->ni", R, model.p0), rot], axis=1)
+        return held * moved, jnp.zeros_like(y)
+
+    def residual(self, params, solution, delta):
+        model, _, previous = params
+        R, p, y = solution
+        Rx, px = update_frames(R, p, delta[0])
+        return coupling.coupled_residual(model, Rx, px, y + delta[1],
+                                         residual(model, Rx, px, 1.0, previous))
+
+    def linear_solve(self, params, solution, rhs):
+        model, _, previous = params
+        R, p, y = solution
+        system = coupling.couple(model, R, p, y,
+                                 *residual_and_tangent(model, R, p, 1.0, self.tangent,
+                                                       previous))
+        x, z = implicit_solve_coupled(system.blocks, system.B, system.C, system.D, *rhs,
+                                      model.structure.identity_nodes())
+        return coupling.split(model.structure, x, z)
+
+    def merge(self, params, solution, free, moved):
+        held = 1.0 - params[0].structure.free_mask()
+        return jnp.where(held > 0, moved[0], free[0]), free[1]
+
+    def push(self, params, solution, delta):
+        """d/dt [R exp(t dxi)] at t = 0: ``(R skew(dxi_w), R dxi_u)``, and dy."""
+        R, p, y = solution
+        dxi, dy = delta
+        return (jnp.einsum("nij,njk->nik", R, jax.vmap(lie.skew)(dxi[:, 3:])),
+                jnp.einsum("nij,nj->ni", R, dxi[:, :3]), dy)
+
+    def valid(self, params):
+        return params[1]
+
+
+def equilibrium(model: Model, settings: StaticSettings, continuation=None,
+                keep_tangent: bool = False) -> Equilibrium:
+    """The continuation (default :func:`_continuation`; the batched sweeps pass their
+    flattened one) under the full loads, with the implicit derivative attached. With
+    displacement-controlled tendons, their tensions are solved first
+    (:func:`~simsoft_jax.solvers.tendon_control.solve_tensions`). ``keep_tangent``: return the
+    last Newton pass's tangent blocks as ``Equilibrium.tangent`` (not differentiated;
+    for the stability count), else None."""
+    model = full_loads(model)
+
+    def solve(m, st):
+        eq = (continuation or _continuation)(jax.lax.stop_gradient(m),
+                                             jax.lax.stop_gradient(st))
+        # None without tendons (a zero-size output would trouble batched maps)
+        tension = m.tendon_tension if m.structure.tendon_names else None
+        eq = eq._replace(previous=eq.previous if m.obstacle_friction is not None else None,
+                         tangent=eq.tangent if keep_tangent else None)
+        y = jnp.zeros(0) if eq.multipliers is None else eq.multipliers   # None: no joints
+        R, p, y = implicit(EquilibriumProblem(st.tangent), (m, eq.converged, eq.previous),
+                           (eq.R, eq.p, y))
+        return eq._replace(R=R, p=p, multipliers=None if eq.multipliers is None else y,
+                           tendon_tension=tension)
+
+    if not any(model.structure.tendon_displaced):
+        return solve(model, settings)
+    model, ok = tendon_control.solve_tensions(
+        solve, model, settings, settings.step_tolerance * model.char_length)
+    eq = solve(model, settings)
+    failed = eq.converged & ~ok
+    return eq._replace(converged=eq.converged & ok,
+                       status=jnp.where(failed, Status.MAX_ITERATIONS, eq.status))
+
+
+@jit(static_argnames="tangent")
+def differentiable(eq: Equilibrium, model: Model, tangent: str) -> Equilibrium:
+    """``eq``, solved for ``model`` (without displacement-controlled tendons), with the
+    implicit derivative in ``model`` attached outside the compiled solve
+    (:func:`simsoft_jax.solvers.newton.implicit`): ``jax.grad`` or ``jax.jvp`` of a function
+    calling :func:`solve_static` outside ``jit`` runs the solve's compiled program as it is
+    and compiles only the small tangent program (``tangent``: its tangent path)."""
+    model = full_loads(model)
+    y = jnp.zeros(0) if eq.multipliers is None else eq.multipliers
+    R, p, y = implicit(EquilibriumProblem(tangent), (model, eq.converged, eq.previous),
+                       (eq.R, eq.p, y))
+    return eq._replace(R=R, p=p, multipliers=None if eq.multipliers is None else y,
+                       tendon_tension=model.tendon_tension if model.structure.tendon_names
+                       else None)
+
+
+def _compiled(model: Model, settings: StaticSettings) -> Equilibrium:
+    """The equilibrium of plain arrays by ``sj.run``'s compiled static program for this
+    structure (:func:`simsoft_jax.pipeline.programs.compiled_static_solver`, the stability count
+    switched off), so that both share one program."""
+    from ...pipeline.programs import compiled_static_solver   # it imports this package
+    solver, _ = compiled_static_solver(model, settings)
+    return solver(model, as_traced(settings), np.bool_(False))[0]
+
+
+@jit
+def static_program(model: Model, settings: StaticSettings) -> Equilibrium:
+    return equilibrium(model, settings)
+
+
+def solve_static(model: Model, settings: StaticSettings = StaticSettings(),
+                 throw: bool = False) -> Equilibrium:
+    """Static equilibrium of ``model`` under its full loads (spec S70-S71).
+
+    Returns an :class:`Equilibrium`; when ``converged`` is False, ``status``/``cause``
+    and :meth:`Equilibrium.message` say why, ``load_level`` how far the continuation got,
+    and R, p hold the last converged state. Compiled once per model structure and
+    ``tangent`` (the settings that are numbers are traced). Differentiable in all Model
+    arrays (implicit function theorem); the derivative of a non-converged solve is NaN.
+    ``throw=True`` raises :class:`~simsoft_jax.solvers.status.SolveError` instead of returning a
+    failed solve.
+
+    Called on arrays (not inside ``jit``, ``vmap`` or ``grad``) it runs the program of
+    :func:`~simsoft_jax.run` for this structure and ``tangent`` (one compile
+    for both, said on stderr, kept in the cache folder:
+    :func:`~simsoft_jax.pipeline.programs.compiled_static_solver`) and returns NumPy arrays;
+    traced, :func:`static_program`, compiled with the enclosing computation (JAX's
+    persistent cache keeps it, :func:`~simsoft_jax.solvers.compile_cache.enable`).
+    """
+    compile_cache.enable()
+    if not traced(model, settings):
+        eq = _compiled(model, settings)
+    elif any(model.structure.tendon_displaced):   # their tensions' derivative: in the program
+        eq = static_program(model, as_traced(settings))
+    else:   # the program's answer, its derivative attached by a program of its own
+        primal = jax.lax.stop_gradient(model)   # plain arrays under an eager grad or jvp
+        eq = (static_program(primal, as_traced(settings)) if traced(primal, settings)
+              else _compiled(primal, settings))
+        eq = differentiable(eq, model, settings.tangent)
+    if throw:
+        raise_if_failed("static", eq.converged, eq.status, eq.cause, eq.load_level,
+                        eq.residual_norm)
+    return eq

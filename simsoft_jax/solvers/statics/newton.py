@@ -1,0 +1,209 @@
+"""The static policy of the Newton core (:mod:`simsoft_jax.solvers.newton`): one Newton solve at
+a load level of the continuation (:mod:`simsoft_jax.solvers.statics`), a fresh tangent at every
+iterate with a natural-level divergence guard and backtracking, and the load scale of the
+tolerance."""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from ...couplings import coupling
+from ...math import lie
+from ...physics.assembly import residual_and_tangent
+from ...physics.inertia import line_density
+from ...math.linalg import pivots_positive_definite
+from ...model.model import Model
+from ..newton import (RUNNING, capped, coupled_step, factorize, iterate, ladder, residual_norm,
+                      step_norm, step_size, weighted_norm)
+from ..status import Status
+from ...physics.terms import registry
+from .branch import symmetric_at_equilibrium
+from .settings import StaticSettings
+
+
+def load_scale(model: Model):
+    """Weighted size (N) of the full external loads, the reference of the tolerance: the
+    nodal, distributed and attached loads here, the registered terms' declared shares
+    (:func:`simsoft_jax.physics.terms.registry.load_scale_squared`)."""
+    s = model.structure
+    mask = s.free_mask()
+    nodal = jnp.zeros((s.n_nodes, 6))
+    if model.nodal_dead is not None:
+        nodal = nodal + jnp.abs(model.nodal_dead)
+    if model.nodal_follower is not None:
+        nodal = nodal + jnp.abs(model.nodal_follower)
+    total = jnp.sum(weighted_norm(model, nodal * mask) ** 2)
+    q = jnp.zeros((s.n_elements, 3))
+    if model.gravity is not None:
+        rho_a = jax.vmap(line_density)(model.inertia)
+        q = q + rho_a[:, None] * model.gravity
+    if model.distributed_world is not None:
+        q = q + model.distributed_world
+    if model.distributed_local is not None:
+        q = q + jnp.abs(model.distributed_local)
+    total = total + jnp.sum((model.length[:, None] * q) ** 2)
+    if s.offset_load_nodes:        # forces at offset points and their moments
+        f = model.offset_force
+        total = total + jnp.sum(f ** 2) + jnp.sum(
+            (jnp.linalg.norm(model.offset_point, axis=1) * jnp.linalg.norm(f, axis=1)
+             / model.char_length) ** 2)
+    if s.mass_nodes and model.gravity is not None:   # weights of attached masses
+        w = model.mass[:, None] * model.gravity
+        total = total + jnp.sum(w ** 2) + jnp.sum(
+            (jnp.linalg.norm(model.mass_offset, axis=1) * jnp.linalg.norm(w, axis=1)
+             / model.char_length) ** 2)
+    return jnp.sqrt(total + registry.load_scale_squared(model))
+
+
+def update_frames(R, p, dx):
+    return jax.vmap(lie.compose_exp)(R, p, dx)
+
+
+class NewtonState(NamedTuple):
+    """Carry of :func:`newton_solve`: the trial frames (R, p), the accepted base frames and
+    the Newton step from the base (dx), the fraction of it tried (step), the size of that
+    step (size_base) and the residual at the base (res_base), the residual at the last
+    evaluated trial (res), rejected trials in a row (backtracks), accepted Newton steps
+    (iterations), and the status: -1 running, else a :class:`Status` code. y, base_y,
+    dy: the joint multipliers like R, p and dx (empty without joints). tangent: the
+    chains' tangent blocks evaluated at the last pass's trial (at (R, p) once done).
+    positive: that tangent is positive definite, read from the pivots of its
+    factorization when the pass converged and :func:`.branch.symmetric_at_equilibrium`
+    holds (False otherwise)."""
+    R: jax.Array
+    p: jax.Array
+    base_R: jax.Array
+    base_p: jax.Array
+    dx: jax.Array
+    y: jax.Array
+    base_y: jax.Array
+    dy: jax.Array
+    step: jax.Array
+    size_base: jax.Array
+    res: jax.Array
+    res_base: jax.Array
+    backtracks: jax.Array
+    iterations: jax.Array
+    status: jax.Array
+    tangent: tuple
+    positive: jax.Array
+
+
+def level_tolerance(model: Model, settings: StaticSettings):
+    """The tolerance of the intermediate load levels (see :class:`StaticSettings`)."""
+    if model.obstacle_friction is not None:
+        return settings.tolerance
+    return jnp.maximum(settings.level_tolerance, settings.tolerance)
+
+
+def max_load_step(model: Model, settings: StaticSettings):
+    """The largest load increment of the continuation (see :class:`StaticSettings`)."""
+    first = 1.0 / settings.load_steps
+    if settings.max_load_step is None or model.obstacle_friction is not None:
+        return first
+    return jnp.maximum(settings.max_load_step, first)
+
+
+def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState,
+                previous=None) -> NewtonState:
+    """One pass of :func:`newton_solve` at load level ``lam`` (load scale ``ref``): residual,
+    tangent and Newton step at the trial state, then accept or backtrack (see there);
+    ``previous``: the frames (R, p) of the last converged level (the reference of the
+    quasi-static friction)."""
+    tol = jnp.where(lam < 1.0, level_tolerance(model, settings), settings.tolerance) * ref
+    r, tangent = residual_and_tangent(model, c.R, c.p, lam, settings.tangent, previous)
+    system = coupling.couple(model, c.R, c.p, c.y, r, tangent)
+    res = residual_norm(model, system, ref)
+    factors = factorize(model, system)
+    dx, dy = capped(settings.max_rotation_step,
+                    *coupled_step(model, factors, system.r, system.r_z))
+    size = step_size(model, dx)
+    finite = jnp.isfinite(res) & jnp.isfinite(size)
+    exhausted = c.backtracks >= settings.line_search_steps
+    accept = finite & ((size < settings.max_step_growth * c.size_base) | exhausted)
+    # converged: residual below tolerance, or stagnating at the round-off floor (a stiff
+    # axial term makes |r| ~ eps EA) well below the load scale
+    converged = accept & ((res <= tol) | ((res <= settings.stagnation_level * ref)
+                                          & (res >= 0.5 * c.res_base)))
+    # the next Newton step is below step_tolerance: the state is that accurate, even
+    # where round-off keeps the residual above tol (stiff axial terms, spec (S64))
+    stalled = accept & (step_norm(model, dx) <= settings.step_tolerance)
+    base_R = jnp.where(accept, c.R, c.base_R)
+    base_p = jnp.where(accept, c.p, c.base_p)
+    base_y = jnp.where(accept, c.y, c.base_y)
+    dx = jnp.where(accept, dx, c.dx)
+    dy = jnp.where(accept, dy, c.dy)
+    step = jnp.where(accept, 1.0, 0.5 * c.step)
+    trial_R, trial_p = update_frames(base_R, base_p, step * dx)
+    trial_y = base_y + step * dy
+    iterations = c.iterations + accept
+    # a non-finite trial from a base with no finite step (the first evaluation, or
+    # after line_search_steps halvings) cannot be backtracked: the solve fails here
+    nonfinite = ~finite & (exhausted | ~jnp.isfinite(c.size_base))
+    status = ladder(converged | stalled, (
+        (nonfinite, Status.NONFINITE),
+        (iterations > settings.max_iterations, Status.MAX_ITERATIONS),
+        (~jnp.all(jnp.isfinite(trial_p)), Status.NONFINITE)))
+    done = status != RUNNING
+    positive = jnp.array(False)
+    if symmetric_at_equilibrium(model):   # the stability watch's test, at the converged pass
+        from ..batched import any_lane    # batched imports this package
+        positive = jax.lax.cond(any_lane(status == Status.CONVERGED),
+                                lambda: pivots_positive_definite(factors.chain),
+                                lambda: positive)
+    return NewtonState(
+        R=jnp.where(done, c.R, trial_R), p=jnp.where(done, c.p, trial_p),
+        base_R=base_R, base_p=base_p, dx=dx, y=jnp.where(done, c.y, trial_y),
+        base_y=base_y, dy=dy, step=step,
+        size_base=jnp.where(accept, size, c.size_base), res=res,
+        res_base=jnp.where(accept, res, c.res_base),
+        backtracks=jnp.where(accept, 0, c.backtracks + 1),
+        iterations=iterations, status=status, tangent=tangent, positive=positive)
+
+
+def newton_start(R, p, y) -> NewtonState:
+    """The Newton carry before the first pass, from the predicted frames (R, p) and joint
+    multipliers y."""
+    inf, zero = jnp.array(jnp.inf), jnp.array(0)
+    return NewtonState(R=R, p=p, base_R=R, base_p=p, dx=jnp.zeros(p.shape[:1] + (6,)),
+                        y=y, base_y=y, dy=jnp.zeros_like(y),
+                        step=jnp.array(1.0), size_base=inf, res=inf, res_base=inf,
+                        backtracks=zero, iterations=zero, status=jnp.array(RUNNING),
+                        tangent=no_tangent(p), positive=jnp.array(False))
+
+
+def no_tangent(p):
+    """Zero tangent blocks ``(diag, upper, lower)`` for the N nodes of positions p (N,3)."""
+    n = p.shape[0]
+    return (jnp.zeros((n, 6, 6), p.dtype),) + (jnp.zeros((n - 1, 6, 6), p.dtype),) * 2
+
+
+def newton_outcome(c: NewtonState):
+    """(R, p, y, Newton steps, residual norm, status code, tangent blocks at (R, p),
+    whether they are positive definite as read by the last pass) of a finished Newton
+    carry."""
+    return (c.R, c.p, c.y, jnp.maximum(c.iterations - 1, 0), c.res, c.status,
+            c.tangent, c.positive)
+
+
+def newton_solve(model: Model, settings: StaticSettings, R, p, y, lam, ref, previous=None):
+    """Newton iterations at load level ``lam`` from (R, p) (spec S71) with damping.
+
+    One loop evaluates residual, tangent and Newton step at a trial state. The trial is
+    accepted unless its Newton step exceeds ``max_step_growth`` times the step that led
+    to it (a natural-level divergence guard in the spirit of Deuflhard's monotonicity
+    test: it measures the distance to the solution in the unknowns, so the huge axial
+    stiffness of a rod cannot make a good step look bad, as a residual-based Armijo test
+    does; a strict theta < 1 test rejects good steps of stiff rods) or is not finite; a
+    rejected trial halves the step from the base. Every loop pass either accepts (counted
+    against ``max_iterations``) or backtracks (at most ``line_search_steps`` in a row), so
+    the loop always ends (:func:`newton_pass`). Returns (R, p, y, Newton steps, residual
+    norm, status code, tangent blocks at (R, p), their positive definiteness as
+    :class:`NewtonState` says). ``previous``: as in
+    :func:`newton_pass`.
+    """
+    c = iterate(lambda c: newton_pass(model, settings, lam, ref, c, previous),
+                newton_start(R, p, y))
+    return newton_outcome(c)
