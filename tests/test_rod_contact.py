@@ -271,4 +271,4 @@ def test_coil_with_overlapping_turns_opens_until_its_turns_just_touch():
     assert np.all(separation >= 2 * r - pen - 1e-12)
     assert np.all(separation <= 2 * r)
     np.testing.assert_allclose(rods["force"], 0.0, atol=1e-9 * float(rods["normal_force"]))
-    assert result.stability is None              # not checked with rod-rod contact
+    assert result.stability == {"negative_eigenvalues": 0, "stable": True}   # a stable coil

@@ -28,13 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-
-def _skew(w):
-    """Skew matrices of the rows of ``w`` (..., 3) -> (..., 3, 3)."""
-    z = np.zeros(w.shape[:-1])
-    return np.stack([np.stack([z, -w[..., 2], w[..., 1]], -1),
-                     np.stack([w[..., 2], z, -w[..., 0]], -1),
-                     np.stack([-w[..., 1], w[..., 0], z], -1)], -2)
+from .lie_np import skew
 
 
 def _exp_se3_np(xi):
@@ -43,7 +37,7 @@ def _exp_se3_np(xi):
     of its largest twist)."""
     xi = np.asarray(xi, float)
     X = np.zeros(xi.shape[:-1] + (4, 4))
-    X[..., :3, :3] = _skew(xi[..., 3:])
+    X[..., :3, :3] = skew(xi[..., 3:])
     X[..., :3, 3] = xi[..., :3]
     norm = max(np.abs(X).sum(axis=-2).max(initial=0.0), 1e-300)
     squarings = max(0, int(np.ceil(np.log2(norm))) + 1)
@@ -151,7 +145,7 @@ def _rotation_between(a, b):
             axis = np.cross(a, [0.0, 1.0, 0.0])
         axis /= np.linalg.norm(axis)
         return 2.0 * np.outer(axis, axis) - np.eye(3)
-    V = _skew(v)
+    V = skew(v)
     return np.eye(3) + V + V @ V / (1.0 + c)
 
 

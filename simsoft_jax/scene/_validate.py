@@ -19,6 +19,8 @@ from typing import Any, Iterable, Iterator, Sequence
 
 import numpy as np
 
+from ..math.lie_np import exp_so3 as rodrigues
+
 __all__ = [
     "fail", "join", "index", "describe", "plain", "table", "check_keys", "require",
     "number", "positive", "integer", "string", "choice", "vector", "matrix",
@@ -259,18 +261,6 @@ def rotation_vector(value: Any, path: str) -> np.ndarray:
         fail(path, f"rotation angle (its length) must be at most {MAX_ROTATION:g} rad, got "
              f"components up to {np.abs(out).max():g}")
     return out
-
-
-def rodrigues(rotvec: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector: R = I + sin(a) K + (1 - cos(a)) K^2."""
-    rotvec = np.asarray(rotvec, dtype=float)
-    angle = float(np.linalg.norm(rotvec))
-    x, y, z = rotvec
-    skew = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-    if angle < 1e-8:  # series: sin(a)/a -> 1, (1 - cos a)/a^2 -> 1/2
-        return np.eye(3) + skew + 0.5 * skew @ skew
-    return (np.eye(3) + math.sin(angle) / angle * skew
-            + (1.0 - math.cos(angle)) / angle**2 * skew @ skew)
 
 
 def rotation_matrix(value: Any, path: str) -> np.ndarray:

@@ -19,17 +19,14 @@ from __future__ import annotations
 import numpy as np
 
 from ..math.geometry import frames_at
+from ..math.lie_np import skew
 
 AXES = ("x", "y", "z")
 
 
-def _skew(w):
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-
-
 def _rows(constraint, R, p):
     """Rows (k, 6) of the rigid-motion components a support holds (scaled twist)."""
-    move = np.hstack([np.eye(3), -_skew(p)])          # u = v + w x p = [I, -p^] [v; w]
+    move = np.hstack([np.eye(3), -skew(p)])          # u = v + w x p = [I, -p^] [v; w]
     turn = np.hstack([np.zeros((3, 3)), np.eye(3)])
     kind = constraint.kind
     if kind == "drive" and constraint.slides_along is not None:

@@ -40,6 +40,17 @@ from .scheme import DynamicSettings, State
 CHUNK_STEPS = 400
 
 
+def with_arrays(model: Model) -> Model:
+    """``model`` with every leaf an array: Python numbers given to ``Model.replace``
+    become NumPy arrays (float64 for floats), as the compiled programs expect."""
+    leaves, treedef = jax.tree_util.tree_flatten(model)
+    if all(hasattr(x, "dtype") for x in leaves):
+        return model
+    return jax.tree_util.tree_unflatten(treedef, [
+        x if hasattr(x, "dtype") else np.asarray(x, np.float64 if isinstance(x, float)
+                                                   else None) for x in leaves])
+
+
 def compile_key(model: Model, settings):
     """What a compiled program depends on: the model's structure and array shapes and the
     static settings (the settings that are numbers and the array values are traced)."""

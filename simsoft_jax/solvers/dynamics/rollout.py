@@ -160,9 +160,9 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
         raise ValueError("control: control_params and control_memory need a control policy")
     if _chunked(model, settings, state, differentiable, control):
         from ...pipeline.programs import PROGRAMS    # both import this module
-        from .driver import rollout
+        from .driver import rollout, with_arrays
         steps = settings.steps // settings.save_every * settings.save_every
-        traj, _ = rollout(model, float(settings.dt), steps * float(settings.dt),
+        traj, _ = rollout(with_arrays(model), float(settings.dt), steps * float(settings.dt),
                           float(settings.rho_inf), settings.save_every, compiled=PROGRAMS,
                           tolerance=float(settings.tolerance),
                           max_iterations=int(settings.max_iterations),

@@ -311,6 +311,8 @@ def _compiled(model: Model, settings: StaticSettings) -> Equilibrium:
     structure (:func:`simsoft_jax.pipeline.programs.compiled_static_solver`, the stability count
     switched off), so that both share one program."""
     from ...pipeline.programs import compiled_static_solver   # it imports this package
+    from ..dynamics.driver import with_arrays
+    model = with_arrays(model)
     solver, _ = compiled_static_solver(model, settings)
     return solver(model, as_traced(settings), np.bool_(False))[0]
 
