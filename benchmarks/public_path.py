@@ -48,7 +48,7 @@ _WARM = """
 import json, sys, time
 import numpy as np
 import simsoft_jax as sj
-from simsoft_jax.solvers.statics import as_traced, settings_from_scene
+as_traced, settings_from_scene = sj.statics.as_traced, sj.statics.settings_from_scene
 scene, repeats = sj.load_scene(sys.argv[1]), int(sys.argv[2])
 model, s = sj.build_model(scene), scene.solver
 if s.kind == "static":
