@@ -24,7 +24,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import common  # noqa: E402
 
-from simsoft_jax.math import _xla, linalg  # noqa: E402
+from simsoft_jax.math import xla, linalg  # noqa: E402
 
 LOOPS = 2000
 
@@ -53,7 +53,7 @@ def microseconds(n: int, dense_limit: int, solve_only: bool) -> float:
         return jax.lax.fori_loop(0, LOOPS, body, b)
 
     try:
-        run = _xla.jit(loop)
+        run = xla.jit(loop)
         jax.block_until_ready(run(blocks, b))
     finally:
         linalg.DENSE_LIMIT_NODES = default

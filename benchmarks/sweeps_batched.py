@@ -34,7 +34,7 @@ import common  # noqa: E402
 
 import simsoft_jax as sj  # noqa: E402
 from simsoft_jax.apps import princeton  # noqa: E402
-from simsoft_jax.math._xla import jit  # noqa: E402
+from simsoft_jax.math.xla import jit  # noqa: E402
 
 
 def clock(fn, *args):

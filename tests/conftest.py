@@ -16,7 +16,7 @@
   environment, so also for the examples, notebooks and command-line subprocesses):
   LLVM at optimization level 0 without its expensive passes, and the classic CPU
   emitters for every program (the package uses them for its top-level solver programs
-  already, :mod:`simsoft_jax.math._xla`; the gradients a test takes around a solver are
+  already, :mod:`simsoft_jax.math.xla`; the gradients a test takes around a solver are
   compiled by a plain ``jax.jit``). The suite compiles far more than it runs: the
   compilation of a 50-step rollout and of a static gradient (tests/test_one_model.py's
   scenes) took about 30 and 45 s of CPU time with XLA's defaults and 17-20 and 18-21 s

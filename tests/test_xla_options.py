@@ -1,15 +1,15 @@
-"""simsoft_jax.math._xla.jit: the solver entry points compile with the package's XLA options
+"""simsoft_jax.math.xla.jit: the solver entry points compile with the package's XLA options
 (when this jaxlib accepts them) and give the same numbers as a plain ``jax.jit``."""
 import jax
 import numpy as np
 
 import simsoft_jax as sj
-from simsoft_jax.math import _xla
+from simsoft_jax.math import xla
 from simsoft_jax.solvers.statics import static_program, as_traced
 
 
 def test_compiler_options_are_a_dict_accepted_by_this_jaxlib():
-    options = _xla.compiler_options()
+    options = xla.compiler_options()
     assert isinstance(options, dict)
     jax.jit(lambda x: 2.0 * x, **({"compiler_options": options} if options else {})
             ).lower(1.0).compile()
@@ -44,6 +44,6 @@ def test_a_program_without_loop_invariant_motion_gives_the_same_numbers():
     def f(x):
         return jax.lax.fori_loop(0, 10, lambda k, c: c + k * jax.numpy.sin(x), 0.0)
 
-    ours = _xla.jit(f, loop_invariant_motion=False)
+    ours = xla.jit(f, loop_invariant_motion=False)
     assert ours.lower(1.3).compile() is not None
     np.testing.assert_allclose(float(ours(1.3)), 45.0 * np.sin(1.3), rtol=1e-15)

@@ -47,7 +47,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._xla import take_rows
+from .xla import take_rows
 
 
 def block_matvec(blocks, x):

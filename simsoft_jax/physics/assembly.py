@@ -30,7 +30,7 @@ import numpy as np
 
 from . import element, inertia
 from ..math import lie
-from ..math._xla import take_rows
+from ..math.xla import take_rows
 from .inertia import line_density
 from ..model.model import Model
 from .terms import ElementData, element_state

@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..math._xla import jit
+from ..math.xla import jit
 from ..model.built_models import Lru
 from ..solvers.compile_cache import compile_stored
 from ..solvers.dynamics.driver import compile_key

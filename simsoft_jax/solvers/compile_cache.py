@@ -53,7 +53,7 @@ import jaxlib
 import numpy as np
 from jax.experimental import serialize_executable
 
-from ..math import _xla
+from ..math import xla
 from ..pipeline.output import write_atomic
 
 ENV_DIR = "SIMSOFT_JAX_CACHE_DIR"
@@ -134,7 +134,7 @@ def _source_key() -> str:
     device = jax.devices()[0]
     digest = hashlib.sha256(repr((
         jax.__version__, jaxlib.__version__, device.platform, device.client.platform_version,
-        device.device_kind, sorted(_xla._CANDIDATE.items()),
+        device.device_kind, sorted(xla._CANDIDATE.items()),
         os.environ.get("XLA_FLAGS", ""), platform.machine(), _cpu_flags())).encode())
     for path in sorted(root.rglob("*.py")):
         digest.update(str(path.relative_to(root)).encode() + path.read_bytes())
@@ -298,7 +298,7 @@ def compile_stored(jitted, args: tuple, out_tree, name: str):
     With the cache on, the compiled program (over the flattened arguments) is kept in
     ``<cache>/programs/`` under a hash of its argument structure (pytree, shapes,
     dtypes), this package's source and the machine (:func:`_source_key`); a later
-    process loads it. ``jitted``: a :func:`simsoft_jax.math._xla.jit` program (compiled with its
+    process loads it. ``jitted``: a :func:`simsoft_jax.math.xla.jit` program (compiled with its
     own options). ``out_tree``: the pytree structure of the outputs. Returns a callable
     with ``jitted``'s signature. Compiling (not loading) is announced (:func:`announced`).
     """

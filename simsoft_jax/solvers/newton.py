@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 
 from ..couplings import coupling
-from ..math._xla import jit
+from ..math.xla import jit
 from ..math.linalg import factorize_coupled, solve_coupled
 from .status import Status
 

@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from ..math._xla import jit
+from ..math.xla import jit
 from ..solvers.dynamics import DynamicSettings, simulate
 from ..model.model import Model
 from ..solvers.statics import StaticSettings, solve_static

@@ -37,7 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..math import lie
-from ..math._xla import jit
+from ..math.xla import jit
 from .calibration import PARAMETERS, scale_stiffness
 from .calibration_report import determined, information
 from .least_squares import Outcome, least_squares

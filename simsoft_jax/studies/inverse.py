@@ -34,7 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..math import lie
-from ..math._xla import jit
+from ..math.xla import jit
 from .least_squares import Outcome, Solution, least_squares
 from ..model.model import Model
 from ..solvers.statics import StaticSettings, as_traced, solve_static

@@ -23,7 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..math._xla import jit
+from ..math.xla import jit
 from ..solvers.dynamics import DynamicSettings, simulate
 from .inverse import node_indices
 from .least_squares import Outcome, least_squares

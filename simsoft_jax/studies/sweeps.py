@@ -35,7 +35,7 @@ import jax.numpy as jnp
 import jaxlib
 import numpy as np
 
-from ..math._xla import jit
+from ..math.xla import jit
 from ..solvers.batched import solve_static_lane
 from ..solvers.dynamics import DynamicSettings, Trajectory, simulate
 from ..model.model import Model

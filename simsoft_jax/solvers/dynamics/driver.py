@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ...math._xla import jit
+from ...math.xla import jit
 from ..compile_cache import compile_stored
 from ...model.model import Model
 from ..packing import Layout, pack
@@ -81,7 +81,7 @@ def block_steps(dt: float, t_end: float, save_every: int) -> tuple[np.ndarray, i
     return np.array([dt] * full + closing, np.float64), save_every
 
 
-@jit(loop_invariant_motion=False)   # _xla: 0.3 s less compile, same run time
+@jit(loop_invariant_motion=False)   # xla: 0.3 s less compile, same run time
 def _chunk(model: Model, settings: DynamicSettings, carry, h, fresh):
     """Save blocks of step sizes ``h`` (B,) from ``carry``, or from the start state of
     ``model`` when ``fresh``; trailing blocks of size 0 (the padding of the last chunk)

@@ -23,7 +23,7 @@ from .. import compile_cache
 from ...physics import element
 from ...math import lie
 from ...couplings import mechanisms
-from ...math._xla import jit, traced
+from ...math.xla import jit, traced
 from ...physics.assembly import apply_constraints, assemble_blocks, attachments_and_tangents
 from ...math.linalg import block_solve, factorize_coupled, solve_coupled
 from ...couplings.drives import reduce, slide_maps

@@ -27,7 +27,7 @@ import numpy as np
 from .. import compile_cache, tendon_control
 from ...couplings import coupling, mechanisms
 from ...math import lie
-from ...math._xla import jit, traced
+from ...math.xla import jit, traced
 from ...physics.assembly import residual, residual_and_tangent
 from ...math.linalg import implicit_solve_coupled
 from ...model.loads import full_loads
