@@ -93,7 +93,7 @@ def coupled_residual(model, R, p, y, r):
     extra = 0
     if s.self_contact:
         r = r + rod_pairs.residual(model, R, p)
-        extra = border_sizes(s)[0] - (mechanisms.coupling_count(s) if s.joints else 0)
+        extra = 6 * rod_pairs.coupled_nodes(s)      # the contact's node copies
     if s.joints:
         r, r_z = mechanisms.residual(model, R, p, y, r)
     else:

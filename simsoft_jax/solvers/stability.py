@@ -111,9 +111,12 @@ def bordered_count(system: coupling.Coupled, m_joints: int):
     B = 0.5 * (system.B[..., :m_joints] + jnp.transpose(system.C[:m_joints], (1, 2, 0)))
     D = 0.5 * (system.D[:m_joints, :m_joints] + system.D[:m_joints, :m_joints].T)
     count = count_negative_pivots(diag, lower)
+    if m_joints:     # the joints' Schur complement: its count, and A^-1 below
+        KinvB = solve_factored(chain, B)
+        schur = D - jnp.einsum("nja,njb->ab", B, KinvB)
+        count = count + jnp.sum(jnp.linalg.eigvalsh(0.5 * (schur + schur.T)) < 0.0)
     if m == m_joints:                     # joints only
-        schur = D - jnp.einsum("nja,njb->ab", B, solve_factored(chain, B))
-        return count + jnp.sum(jnp.linalg.eigvalsh(0.5 * (schur + schur.T)) < 0.0)
+        return count
     # the contact's cross term U W U^T: U its unit columns on the chains and the joints'
     # coupling unknowns, W from C = W U^T (C's columns at U's dofs)
     U = system.B[..., m_joints:]                                     # (N,6,mc)
@@ -125,15 +128,13 @@ def bordered_count(system: coupling.Coupled, m_joints: int):
     UV, UV_z = jnp.einsum("njb,bk->njk", U, V), U_z @ V
     # A^-1 (U V) on the tangent without the contact's cross term: the chains bordered by
     # the joints' coupling unknowns (none: the chains)
+    KinvUV = solve_factored(chain, UV)
     if m_joints:
-        schur = D - jnp.einsum("nja,njb->ab", B, solve_factored(chain, B))
-        count = count + jnp.sum(jnp.linalg.eigvalsh(0.5 * (schur + schur.T)) < 0.0)
-        KinvB, KinvUV = solve_factored(chain, B), solve_factored(chain, UV)
         z = jnp.linalg.solve(schur, UV_z - jnp.einsum("nja,njk->ak", B, KinvUV))
         x = KinvUV - jnp.einsum("nja,ak->njk", KinvB, z)
         G = jnp.einsum("njk,njl->kl", UV, x) + UV_z.T @ z
     else:
-        G = jnp.einsum("njk,njl->kl", UV, solve_factored(chain, UV))
+        G = jnp.einsum("njk,njl->kl", UV, KinvUV)
     inverse = jnp.where(nonzero, 1.0 / jnp.where(nonzero, lam, 1.0), 0.0)
     keep = nonzero[:, None] & nonzero[None, :]
     S = jnp.where(keep, -jnp.diag(inverse) - 0.5 * (G + G.T), 0.0) + jnp.diag(
