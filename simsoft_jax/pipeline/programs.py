@@ -44,9 +44,10 @@ def solve_static_checked(model: Model, settings, check):
     instead of a dozen. (Packing the frames as well made the whole solve ~10 % slower:
     the loops then keep them in XLA's temporary buffers.)"""
     eq = equilibrium(model, settings, keep_tangent=True)
-    tangent, eq = eq.tangent, eq._replace(tangent=None)
+    tangent, positive = eq.tangent, eq.tangent_positive
+    eq = eq._replace(tangent=None, tangent_positive=None)
     count = jax.lax.cond(check & eq.converged,
-                         lambda: negative_eigenvalues(model, eq, tangent).astype(int),
+                         lambda: negative_eigenvalues(model, eq, tangent, positive).astype(int),
                          lambda: jnp.array(-1))
     return eq.R, eq.p, pack((eq._replace(R=None, p=None), count))
 

@@ -68,17 +68,23 @@ def _pivot_count(diag, lower):
     return first + jnp.sum(counts)
 
 
-def negative_eigenvalues(model: Model, eq, tangent=None) -> jax.Array:
+def negative_eigenvalues(model: Model, eq, tangent=None, positive=None) -> jax.Array:
     """Negative eigenvalues (int array, 0 = stable) of the symmetric part of the
     constrained tangent at the equilibrium ``eq`` (:class:`~simsoft_jax.solvers.statics.Equilibrium`
     or anything with frames ``R`` (N,3,3) and positions ``p`` (N,3), m) of ``model`` under
     its full loads. ``tangent``: that tangent's blocks ``(diag, upper, lower)`` when at
     hand (the last Newton pass's, ``Equilibrium.tangent``), used for rods without joints
     or friction (the Newton tangent with friction holds its stick terms, which this count
-    leaves out); assembled here otherwise. Pure: jit- and vmap-able."""
+    leaves out); assembled here otherwise. ``positive``: whether that tangent's symmetric
+    part is positive definite when already known (``Equilibrium.tangent_positive``, the
+    continuation's stability watch), so that only an indefinite one is counted. Pure:
+    jit- and vmap-able."""
     s = model.structure
     if tangent is not None and not (coupling.present(s) or model.obstacle_friction is not None):
-        return count_negative_pivots(*symmetric_blocks(tangent))
+        if positive is None:
+            return count_negative_pivots(*symmetric_blocks(tangent))
+        return jax.lax.cond(positive, lambda: jnp.zeros((), int),
+                            lambda: _pivot_count(*symmetric_blocks(tangent)))
     loaded = full_loads(model)
     r, blocks = residual_and_tangent(loaded, eq.R, eq.p, 1.0)
     if not coupling.present(s):

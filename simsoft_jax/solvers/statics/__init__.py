@@ -181,7 +181,8 @@ def continuation_result(settings: StaticSettings, c: ContinuationState) -> Equil
                                  Status.STEP_TOO_SMALL))
     return Equilibrium(c.R, c.p, converged, c.iterations, c.residual, c.lam, c.accepted,
                        c.failures, status, c.cause, c.y if c.y.size else None,
-                       previous=(c.R_prev, c.p_prev), tangent=c.tangent)
+                       previous=(c.R_prev, c.p_prev), tangent=c.tangent,
+                       tangent_positive=c.stable)
 
 
 def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
@@ -264,7 +265,8 @@ def equilibrium(model: Model, settings: StaticSettings, continuation=None,
     displacement-controlled tendons, their tensions are solved first
     (:func:`~simsoft_jax.solvers.tendon_control.solve_tensions`). ``keep_tangent``: return the
     last Newton pass's tangent blocks as ``Equilibrium.tangent`` (not differentiated;
-    for the stability count), else None."""
+    for the stability count) and, where the continuation watched stability, whether
+    they are positive definite (``Equilibrium.tangent_positive``), else None."""
     model = full_loads(model)
 
     def solve(m, st):
@@ -272,8 +274,10 @@ def equilibrium(model: Model, settings: StaticSettings, continuation=None,
                                              jax.lax.stop_gradient(st))
         # None without tendons (a zero-size output would trouble batched maps)
         tension = m.tendon_tension if m.structure.tendon_names else None
+        watched = keep_tangent and branch.watched(m)
         eq = eq._replace(previous=eq.previous if m.obstacle_friction is not None else None,
-                         tangent=eq.tangent if keep_tangent else None)
+                         tangent=eq.tangent if keep_tangent else None,
+                         tangent_positive=eq.tangent_positive if watched else None)
         y = jnp.zeros(0) if eq.multipliers is None else eq.multipliers   # None: no joints
         R, p, y = implicit(EquilibriumProblem(st.tangent), (m, eq.converged, eq.previous),
                            (eq.R, eq.p, y))

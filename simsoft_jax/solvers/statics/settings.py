@@ -118,7 +118,9 @@ class Equilibrium(NamedTuple):
     (:mod:`simsoft_jax.physics.terms.static_friction`); None without friction. tangent: the
     chains' tangent blocks ``(diag, upper, lower)`` at the equilibrium under the full
     loads, from the last Newton pass (see :func:`equilibrium`, ``keep_tangent``); None
-    unless asked for."""
+    unless asked for. tangent_positive: whether the symmetric part of that tangent is
+    positive definite, as the continuation's stability watch found it (bool; with
+    ``keep_tangent`` for watched structures, :func:`~.branch.watched`), else None."""
     R: jax.Array
     p: jax.Array
     converged: jax.Array
@@ -133,6 +135,7 @@ class Equilibrium(NamedTuple):
     tendon_tension: jax.Array | None = None
     previous: tuple | None = None
     tangent: tuple | None = None
+    tangent_positive: jax.Array | None = None
 
     def message(self) -> str:
         """How the solve ended, in words (concrete, unbatched results)."""
