@@ -61,7 +61,7 @@ def _check_figures(args, kind: str) -> None:
 
 
 def _run(args) -> int:
-    from .scene._validate import readable
+    from .scene.key_checks import readable
     from .model.built_models import scene_of
     from .pipeline.output import check_output
     from .pipeline.results import run
@@ -155,7 +155,7 @@ def _figures(result, plot, animate):
 
 
 def _validate(args) -> int:
-    from .scene._validate import readable
+    from .scene.key_checks import readable
     from .scene.scene import load_scene
     try:
         scene = load_scene(args.scene)

@@ -101,7 +101,8 @@ def _release_compiled_programs(request):
     programs and built models that ``sj.run`` keeps)."""
     if getattr(request.module, "COUNTS_COMPILATIONS", False):
         from simsoft_jax.model import built_models
-        from simsoft_jax.pipeline import programs, results
+        from simsoft_jax.pipeline import results
+        from simsoft_jax.solvers import programs
 
         for kept in (programs.PROGRAMS, results._STATIC_RUNS, built_models._MODELS,
                      built_models._SEEN):

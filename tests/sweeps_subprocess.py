@@ -17,7 +17,7 @@ import numpy as np
 
 import simsoft_jax as sj
 from simsoft_jax.studies import sweeps
-from simsoft_jax.pipeline.output import write_atomic
+from simsoft_jax.atomic_files import write_atomic
 
 L = 0.3
 

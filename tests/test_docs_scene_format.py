@@ -29,7 +29,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DOC_PATH = ROOT / "docs" / "scene-format.md"
 DOC = DOC_PATH.read_text(encoding="utf-8")
 SOURCES = [Path(scene_module.__file__)] + [Path(scene_module.__file__).with_name(name) for name in
-                                            ("scene_rods.py", "scene_initial.py", "_validate.py",
+                                            ("scene_rods.py", "scene_initial.py", "key_checks.py",
                                              "scene_contact.py", "scene_actuators.py",
                                              "scene_attachments.py", "scene_mechanisms.py",
                                              "scene_fields.py")]

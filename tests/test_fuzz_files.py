@@ -138,7 +138,7 @@ def _textual(text, rng):
 
 
 def _toml(d):
-    from simsoft_jax.scene._validate import toml_document
+    from simsoft_jax.scene.key_checks import toml_document
     return toml_document(d)
 
 

@@ -4,7 +4,7 @@ import json
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax.scene._validate import MAX_DEPTH
+from simsoft_jax.scene.key_checks import MAX_DEPTH
 
 BEAM = {"solver": {"kind": "static"},
         "rods": [{"name": "beam", "material": "aluminum_7075",

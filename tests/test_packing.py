@@ -5,7 +5,7 @@ import pytest
 
 import simsoft_jax as sj
 from simsoft_jax.model import built_models
-from simsoft_jax.pipeline import programs
+from simsoft_jax.solvers import programs
 from simsoft_jax.solvers.packing import Layout, pack
 from simsoft_jax.solvers.statics import as_traced, settings_from_scene
 

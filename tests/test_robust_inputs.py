@@ -20,7 +20,7 @@ import pytest
 
 import simsoft_jax as sj
 from simsoft_jax.cli import main
-from simsoft_jax.pipeline.output import write_atomic
+from simsoft_jax.atomic_files import write_atomic
 from simsoft_jax.solvers.statics import StaticSettings
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..math.quadrature import gauss_rule
+
 _SAMPLES_PER_TURN = 12   # Gauss points per helix turn inside an element (at least 6)
 
 
@@ -26,35 +28,6 @@ def quadrature_size(scene) -> int:
     specs = {rod.name: rod for rod in scene.rods}
     turns = [np.diff(specs[part.rod].node_arc()).max() / abs(part.routing.pitch) for part in parts if part.routing.kind == "helix"]
     return int(max([6] + [int(np.ceil(_SAMPLES_PER_TURN * x)) for x in turns]))
-
-
-def gauss_rule(q: int):
-    """Gauss-Legendre points and weights (q,) on [0, 1]."""
-    x, w = np.polynomial.legendre.leggauss(q)
-    return 0.5 * (1.0 + x), 0.5 * w
-
-
-def routing_at(routing, s):
-    """Offsets (y, z) and slopes d(y, z)/ds at arc lengths ``s`` (...,): two (..., 2)."""
-    if routing.kind == "constant":
-        offset = np.broadcast_to([routing.y, routing.z], s.shape + (2,))
-        return offset, np.zeros_like(offset)
-    if routing.kind == "helix":
-        k = 2.0 * np.pi / routing.pitch
-        theta = np.deg2rad(routing.phase_deg) + k * s
-        r = routing.radius
-        return (np.stack([r * np.cos(theta), r * np.sin(theta)], -1),
-                np.stack([-r * k * np.sin(theta), r * k * np.cos(theta)], -1))
-    offset = np.stack([np.interp(s, routing.s, routing.ys), np.interp(s, routing.s, routing.zs)], -1)
-    if len(routing.s) == 1:
-        return offset, np.zeros_like(offset)
-    # slope of the piece s lies on; zero outside the samples (the offset is held there)
-    piece = np.clip(np.searchsorted(routing.s, s, side="right") - 1, 0, len(routing.s) - 2)
-    ds = np.diff(routing.s)
-    slope = np.stack([np.diff(routing.ys)[piece] / ds[piece],
-                      np.diff(routing.zs)[piece] / ds[piece]], -1)
-    inside = (s >= routing.s[0]) & (s <= routing.s[-1])
-    return offset, slope * inside[..., None]
 
 
 def _members(items, rods, n_elements):
@@ -92,7 +65,7 @@ def tendon_arrays(scene, rods, n_elements):
             e = rods[part.rod].first_element + k
             s_node = arcs[part.rod]
             at = s_node[k, None] + xi[None, :] * (s_node[k + 1] - s_node[k])[:, None]
-            offset[m, e], slope[m, e] = routing_at(part.routing, at)
+            offset[m, e], slope[m, e] = part.routing.offsets_at(at)
             member[m, e] = True
     static = dict(tendon_names=tuple(t.name for t in tendons),
                   tendon_elements=tuple(tuple(row) for row in member.tolist()),

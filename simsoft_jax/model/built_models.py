@@ -26,7 +26,7 @@ from typing import NamedTuple
 import jax
 import numpy as np
 
-from ..scene._validate import FILES_READ
+from ..scene.key_checks import FILES_READ
 from .model import Model, build_model
 from ..scene.scene import Scene, load_scene
 

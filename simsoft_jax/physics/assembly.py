@@ -22,7 +22,7 @@ row/column and a zero residual, so the structure never changes. Linear solves:
 """
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -32,11 +32,13 @@ from . import element, inertia
 from ..math import lie
 from ..math.xla import take_rows
 from .inertia import line_density
-from ..model.model import Model
 from .terms import ElementData, element_state
 from .terms import autodiff as term_tangents
 from .terms import masses as mass_term
 from .terms import contact, offset_loads, registry, static_friction
+
+if TYPE_CHECKING:     # the model layer builds on this one: the type is only named here
+    from ..model.model import Model
 
 TANGENTS = ("closed_form", "autodiff")
 

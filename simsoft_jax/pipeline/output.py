@@ -10,9 +10,8 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -59,33 +58,6 @@ def check_output(path, force: bool = False) -> Path:
     return path
 
 
-def write_atomic(path, write: Callable[[Any], None], binary: bool = False) -> Path:
-    """Call ``write(fh)`` on a temporary file beside ``path``, then rename it to ``path``.
-
-    If ``write`` raises (a full disk, an interrupt, a bug), the temporary file is removed
-    and ``path`` keeps its old content (or stays absent); the error propagates. The file
-    gets the permissions of any new file, ``0666`` less the umask (as ``open`` gives).
-    """
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-    try:
-        os.chmod(tmp, 0o666 & ~_umask())   # mkstemp makes it owner-only
-        with os.fdopen(fd, "wb" if binary else "w",
-                       **({} if binary else {"encoding": "utf-8"})) as fh:
-            write(fh)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    return path
-
-
 STREAM_DEPTH = 4     # levels of nesting below which long lists are written item by item
 STREAM_ITEMS = 64    # a list with more items than this is written item by item
 
@@ -124,13 +96,6 @@ def _write_value(fh, value: Any, depth: int) -> None:
         fh.write("]")
     else:
         fh.write(json.dumps(finite_or_none(value)[0], allow_nan=False))
-
-
-def _umask() -> int:
-    """The process's file-creation mask (read by setting it and putting it back)."""
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
 
 
 def count_nonfinite(value: Any) -> int:

@@ -23,8 +23,9 @@ from ..analysis import contacts
 from ..model.built_models import Lru, model_of, scene_of
 from ..solvers.dynamics import Trajectory, rollout
 from ..model.model import Model
-from .output import count_nonfinite, finite_or_none, write_atomic, write_json
-from .programs import PROGRAMS, compiled_static_solver
+from ..atomic_files import write_atomic
+from .output import count_nonfinite, finite_or_none, write_json
+from ..solvers.programs import PROGRAMS, compiled_static_solver
 from ..scene.scene import Scene
 from ..solvers.statics import as_traced, settings_from_scene
 from ..solvers.status import Status

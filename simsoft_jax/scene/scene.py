@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, describe,
+from .key_checks import (MAX_DEPTH, SpecBase, check_depth, check_keys, choice, describe,
                         fail, index, integer, join, matrix, number, plain, positive,
                         read_table, readable, readonly, require, rotation_vector, short_key,
                         string, table, toml_document, vector)

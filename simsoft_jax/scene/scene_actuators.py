@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validate import (check_keys, choice, fail, index, integer, join, number, positive,
+from .key_checks import (check_keys, choice, fail, index, integer, join, number, positive,
                         readonly, string, table, vector)
 from .scene_tendon_paths import weld_path
 

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import (check_keys, fail, index, join, matrix, number, positive, prefixed,
+from .key_checks import (check_keys, fail, index, join, matrix, number, positive, prefixed,
                         readonly, table, vector)
 from .sections import custom_inertia, custom_stiffness, inertia_matrix, stiffness_matrix
 

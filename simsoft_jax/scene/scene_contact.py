@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validate import (SpecBase, check_keys, choice, fail, index, integer, join, number,
+from .key_checks import (SpecBase, check_keys, choice, fail, index, integer, join, number,
                         positive, readonly, require, string, table, vector)
 from .scene_specs import ProfileSpec
 

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import (SpecBase, check_keys, fail, index, join, number, positive, readonly,
+from .key_checks import (SpecBase, check_keys, fail, index, join, number, positive, readonly,
                         require, table, vector)
 from .scene_specs import ProfileSpec
 

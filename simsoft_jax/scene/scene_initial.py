@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import (check_keys, fail, index, join, note_read, number, polyline,
+from .key_checks import (check_keys, fail, index, join, note_read, number, polyline,
                         proper_rotations, readonly, require, string, table)
 from ..math.geometry import chords
 

@@ -9,7 +9,7 @@ import warnings
 
 import numpy as np
 
-from ._validate import fail, index, join
+from .key_checks import fail, index, join
 from ..math.geometry import element_chords, element_turns
 from .scene_specs import GeometrySpec
 

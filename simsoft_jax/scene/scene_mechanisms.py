@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validate import (check_keys, fail, index, join, number, readonly, rodrigues,
+from .key_checks import (check_keys, fail, index, join, number, readonly, rodrigues,
                         rotation_vector, string, table, vector)
 from .scene_attachments import parse_inertia
 from .scene_specs import BodySpec, JointEnd, JointSpec

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import (check_keys, choice, fail, index, integer, join, number, polyline,
+from .key_checks import (check_keys, choice, fail, index, integer, join, number, polyline,
                         positive, prefixed, readonly, require, rodrigues, rotation_vector,
                         string, table, vector)
 from .materials import BUILTIN_MATERIALS, Material, get_material

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validate import SpecBase
+from .key_checks import SpecBase
 from .materials import Material
 from .sections import Section
 
@@ -212,6 +212,29 @@ class RoutingSpec(SpecBase):
     s: np.ndarray | None = None
     ys: np.ndarray | None = None
     zs: np.ndarray | None = None
+
+    def offsets_at(self, s):
+        """Offsets (y, z) (m) and slopes d(y, z)/ds at arc lengths ``s`` (...,) m of the rod:
+        two (..., 2) arrays."""
+        if self.kind == "constant":
+            offset = np.broadcast_to([self.y, self.z], s.shape + (2,))
+            return offset, np.zeros_like(offset)
+        if self.kind == "helix":
+            k = 2.0 * np.pi / self.pitch
+            theta = np.deg2rad(self.phase_deg) + k * s
+            r = self.radius
+            return (np.stack([r * np.cos(theta), r * np.sin(theta)], -1),
+                    np.stack([-r * k * np.sin(theta), r * k * np.cos(theta)], -1))
+        offset = np.stack([np.interp(s, self.s, self.ys), np.interp(s, self.s, self.zs)], -1)
+        if len(self.s) == 1:
+            return offset, np.zeros_like(offset)
+        # slope of the piece s lies on; zero outside the samples (the offset is held there)
+        piece = np.clip(np.searchsorted(self.s, s, side="right") - 1, 0, len(self.s) - 2)
+        ds = np.diff(self.s)
+        slope = np.stack([np.diff(self.ys)[piece] / ds[piece],
+                          np.diff(self.zs)[piece] / ds[piece]], -1)
+        inside = (s >= self.s[0]) & (s <= self.s[-1])
+        return offset, slope * inside[..., None]
 
 
 @dataclass(frozen=True, eq=False)

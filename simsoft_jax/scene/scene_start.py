@@ -16,8 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validate import fail, index, join, readable
-from ..model.actuator_tables import routing_at
+from .key_checks import fail, index, join, readable
 from .scene_contact import check_contact_radius
 from .scene_mechanisms import jointed_rods
 from .start_frames import initial_frames, world_frames
@@ -96,7 +95,7 @@ def _check_crossings(rods: dict, tendons, frames_of) -> None:
     the rods only)."""
     def point(part, node):
         rod = rods[part.rod]
-        offset, _ = routing_at(part.routing, np.array(rod.node_arc()[node]))
+        offset, _ = part.routing.offsets_at(np.array(rod.node_arc()[node]))
         R, p = frames_of(rod, {node})[node]
         return p + R @ np.array([0.0, *offset])
 

@@ -12,7 +12,7 @@ the scene is read (:mod:`simsoft_jax.scene.scene_start`).
 """
 from __future__ import annotations
 
-from ._validate import fail, join
+from .key_checks import fail, join
 
 
 def _weld_edges(joints: tuple) -> dict:

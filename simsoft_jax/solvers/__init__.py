@@ -2,7 +2,8 @@
 (newton), static equilibrium (statics/) with displacement-controlled
 tendons (tendon_control) and its stability count (stability),
 generalized-alpha dynamics (dynamics/), vmap-friendly lanes (batched), the
-compiled-program cache (compile_cache) and packing.
+compiled programs shared by sj.run, solve_static and simulate (programs),
+the compiled-program cache (compile_cache) and packing.
 
 No imports here: importing a module of this layer loads only what that module needs.
 """

@@ -54,7 +54,7 @@ import numpy as np
 from jax.experimental import serialize_executable
 
 from ..math import xla
-from ..pipeline.output import write_atomic
+from ..atomic_files import write_atomic
 
 ENV_DIR = "SIMSOFT_JAX_CACHE_DIR"
 ENV_SWITCH = "SIMSOFT_JAX_CACHE"

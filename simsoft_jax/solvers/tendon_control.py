@@ -21,7 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..model import actuator_tables
+from ..math.quadrature import gauss_rule
 from ..physics import element
 from .newton import implicit
 from ..physics.terms import tendons
@@ -34,7 +34,7 @@ def length_changes(model, R, p):
     frames R (N,3,3), p (N,3) (:func:`simsoft_jax.physics.terms.tendons.element_length` summed
     over the elements each tendon passes)."""
     s = model.structure
-    weights = actuator_tables.gauss_rule(s.tendon_quadrature)[1]
+    weights = gauss_rule(s.tendon_quadrature)[1]
     a = jnp.asarray(s.element_nodes)
     d = jax.vmap(element.relative_twist)(R[a], p[a], R[a + 1], p[a + 1])
     lengths = jax.vmap(jax.vmap(tendons.element_length, in_axes=(None, None, 0, 0, None)),

@@ -21,7 +21,7 @@ import jax.numpy as jnp
 
 from .. import element
 from ...math import lie
-from ...model.actuator_tables import gauss_rule
+from ...math.quadrature import gauss_rule
 from ..inertia import centre_of_mass, line_density
 from . import Term
 

@@ -34,7 +34,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ...model.actuator_tables import gauss_rule
+from ...math.quadrature import gauss_rule
 from . import Term
 
 

@@ -159,7 +159,7 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
     if control is None and (control_params is not None or control_memory is not None):
         raise ValueError("control: control_params and control_memory need a control policy")
     if _chunked(model, settings, state, differentiable, control):
-        from ...pipeline.programs import PROGRAMS    # both import this module
+        from ..programs import PROGRAMS    # both import this module
         from .driver import rollout, with_arrays
         steps = settings.steps // settings.save_every * settings.save_every
         traj, _ = rollout(with_arrays(model), float(settings.dt), steps * float(settings.dt),

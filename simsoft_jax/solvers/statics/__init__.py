@@ -312,9 +312,9 @@ def differentiable(eq: Equilibrium, model: Model, tangent: str) -> Equilibrium:
 
 def _compiled(model: Model, settings: StaticSettings) -> Equilibrium:
     """The equilibrium of plain arrays by ``sj.run``'s compiled static program for this
-    structure (:func:`simsoft_jax.pipeline.programs.compiled_static_solver`, the stability count
+    structure (:func:`simsoft_jax.solvers.programs.compiled_static_solver`, the stability count
     switched off), so that both share one program."""
-    from ...pipeline.programs import compiled_static_solver   # it imports this package
+    from ..programs import compiled_static_solver   # it imports this package
     from ..dynamics.driver import with_arrays
     model = with_arrays(model)
     solver, _ = compiled_static_solver(model, settings)
@@ -341,7 +341,7 @@ def solve_static(model: Model, settings: StaticSettings = StaticSettings(),
     Called on arrays (not inside ``jit``, ``vmap`` or ``grad``) it runs the program of
     :func:`~simsoft_jax.run` for this structure and ``tangent`` (one compile
     for both, said on stderr, kept in the cache folder:
-    :func:`~simsoft_jax.pipeline.programs.compiled_static_solver`) and returns NumPy arrays;
+    :func:`~simsoft_jax.solvers.programs.compiled_static_solver`) and returns NumPy arrays;
     traced, :func:`static_program`, compiled with the enclosing computation (JAX's
     persistent cache keeps it, :func:`~simsoft_jax.solvers.compile_cache.enable`).
     """

@@ -1,4 +1,4 @@
-"""Private helpers of :mod:`simsoft_jax.scene.scene` (plain Python + NumPy, never JAX):
+"""Helpers of the scene readers (plain Python + NumPy, never JAX):
 path-carrying checks, rotations, the table-file reader and a small TOML writer.
 
 Every check takes the value and its *key path* (``rods[0].section.width``) and raises

@@ -21,13 +21,13 @@ import numpy as np
 
 from ..math.xla import jit
 from ..model.built_models import Lru
-from ..solvers.compile_cache import compile_stored
-from ..solvers.dynamics.driver import compile_key
+from .compile_cache import compile_stored
+from .dynamics.driver import compile_key
 from ..couplings.mechanisms import multiplier_count
 from ..model.model import Model
-from ..solvers.packing import Layout, pack
-from ..solvers.stability import negative_eigenvalues
-from ..solvers.statics import Equilibrium, as_traced, equilibrium
+from .packing import Layout, pack
+from .stability import negative_eigenvalues
+from .statics import Equilibrium, as_traced, equilibrium
 
 # compiled programs by (purpose, compile_key): the static solver and the rollout's chunks
 PROGRAMS = Lru()
