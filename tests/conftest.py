@@ -100,13 +100,9 @@ def _release_compiled_programs(request):
     ``COUNTS_COMPILATIONS = True`` and starts with none in memory (neither JAX's nor the
     programs and built models that ``sj.run`` keeps)."""
     if getattr(request.module, "COUNTS_COMPILATIONS", False):
-        from simsoft_jax.model import built_models
         from simsoft_jax.pipeline import results
-        from simsoft_jax.solvers import programs
 
-        for kept in (programs.PROGRAMS, results._STATIC_RUNS, built_models._MODELS,
-                     built_models._SEEN):
-            kept.clear()
+        results.forget_programs()
         _release()
     yield
     maps = _memory_maps()

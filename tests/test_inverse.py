@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax.studies.inverse import _evaluator, node_indices
+from simsoft_jax.studies.inverse import node_indices, target_evaluator
 from simsoft_jax.solvers.statics import as_traced
 
 TIGHT = sj.StaticSettings(tolerance=1e-12)
@@ -108,7 +108,7 @@ def test_planar_reachable_closed_form_bounds_and_unreachable(planar):
 
     # the Jacobian the solver used (forward mode through the IFT derivative of the
     # solves) against central differences of solves, at the start point of every target
-    evaluate = _evaluator(actuate, node_indices(model, NODES), False)
+    evaluate = target_evaluator(actuate, node_indices(model, NODES), False)
     args = (jnp.asarray(targets), jnp.broadcast_to(jnp.eye(3), (6, 2, 3, 3)),
             jnp.ones(2), jnp.asarray(1.0))
     at = lambda U: [np.asarray(x) for x in  # noqa: E731

@@ -70,6 +70,13 @@ _MODELS = Lru(size=8)   # digest -> Model
 _SEEN = Lru(size=8)     # id(scene) -> _Seen
 
 
+def forget_models() -> None:
+    """Drop the built models kept by their scenes' content (the next
+    :func:`model_of` builds again)."""
+    _MODELS.clear()
+    _SEEN.clear()
+
+
 def _built_from(scene: Scene) -> tuple:
     return tuple(getattr(scene, f.name) for f in dataclasses.fields(scene)
                  if f.name not in _NOT_BUILT_FROM)

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..solvers import compile_cache
 from ..analysis import contacts
-from ..model.built_models import Lru, model_of, scene_of
+from ..model.built_models import Lru, forget_models, model_of, scene_of
 from ..solvers.dynamics import Trajectory, rollout
 from ..model.model import Model
 from ..atomic_files import write_atomic
@@ -60,6 +60,16 @@ class _StaticRuns:
 
 
 _STATIC_RUNS = Lru(size=8)   # id(model) -> _StaticRuns
+
+
+def forget_programs() -> None:
+    """Drop what :func:`run` keeps between calls in this process: the compiled programs
+    (:data:`~simsoft_jax.solvers.programs.PROGRAMS`), the static runs per model and the
+    built models (:func:`~simsoft_jax.model.built_models.forget_models`). Frees their
+    memory; the next call builds and compiles again (or loads from the cache folder)."""
+    PROGRAMS.clear()
+    _STATIC_RUNS.clear()
+    forget_models()
 
 
 def _static_runs(model: Model) -> _StaticRuns:

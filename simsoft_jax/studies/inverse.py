@@ -114,7 +114,7 @@ def _batch(name: str, value, shape: tuple):
 
 
 @functools.lru_cache(maxsize=16)
-def _evaluator(actuate: Callable, nodes: tuple, with_rotations: bool):
+def target_evaluator(actuate: Callable, nodes: tuple, with_rotations: bool):
     """Jitted ``(model, settings, U, P*, R*, w, w_rot) -> (r, J, ok, status, cause,
     level, residual)`` vmapped over the batch (U, P*, R*): residuals, their Jacobians
     dr/du and the static solves' outcomes."""
@@ -206,7 +206,7 @@ def solve_inverse(model: Model, actuate: Callable, nodes: Sequence, positions, u
     if not isinstance(chunk, (int, np.integer)) or chunk < 1:
         raise ValueError(f"chunk: expected a positive int (targets per compiled batch), "
                          f"got {chunk!r}")
-    evaluate_all = _evaluator(actuate, idx, rotations is not None)
+    evaluate_all = target_evaluator(actuate, idx, rotations is not None)
     traced = as_traced(settings)
     length = float(np.sum(np.asarray(model.length)))
     error = lambda r: point_errors(r, m)  # noqa: E731
