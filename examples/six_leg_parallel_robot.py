@@ -52,7 +52,7 @@ FORCE = (1.0, 0.5, -2.0)                                    # N, on the plate at
 DELTAS = (3.0, -1.5, 1.5, 3.0, -1.5, -3.0)                  # mm, forward kinematics
 TARGET_SHIFT, TARGET_AXIS, TARGET_ANGLE = (0.003, -0.002, 0.005), (1.0, 1.0, 0.0), 3.0
 T_MOVE, T_END, DAMPING = 0.25, 0.6, 40.0
-STEPS = 12                                                  # length increments, statics
+LENGTH_STEP = 1e-4                                          # m, statics' length increments
 
 
 def section() -> dict:
@@ -148,12 +148,15 @@ def length_actuation(model):
     return actuate
 
 
-def follow(model, actuate, settings, start, start_lengths, lengths, steps: int):
+def follow(model, actuate, settings, start, start_lengths, lengths):
     """Static equilibrium at leg ``lengths`` (6,) (m) reached from the equilibrium
-    ``start`` at ``start_lengths`` in ``steps`` equal length increments, each solve
-    starting from the previous equilibrium (a Newton solve from the straight legs does
-    not converge once the lengths change by more than about a millimetre: the plate has
-    to move by several). Returns the last Equilibrium and the model that starts there."""
+    ``start`` at ``start_lengths`` in equal length increments of at most ``LENGTH_STEP``,
+    each solve starting from the previous equilibrium (a length change is no load, so the
+    solver's load continuation does not divide it; one Newton solve from the straight legs
+    fails once the lengths change by more than a few tenths of a millimetre, the plate
+    having to move by several). Returns the last Equilibrium and the model that starts
+    there."""
+    steps = max(1, int(np.ceil(np.abs(lengths - start_lengths).max() / LENGTH_STEP)))
     eq = start
     for x in np.linspace(0.0, 1.0, steps + 1)[1:]:
         model = model.replace(R0=eq.R, p0=eq.p)
@@ -197,7 +200,7 @@ def main():
     lengths = nominal + np.asarray(DELTAS) * 1e-3
 
     home = sj.solve_static(actuate(model, nominal), settings)
-    forward, _ = follow(model, actuate, settings, home, nominal, lengths, STEPS)
+    forward, _ = follow(model, actuate, settings, home, nominal, lengths)
     for eq, what in ((home, "home"), (forward, "forward kinematics")):
         if not bool(eq.converged):
             print(f"{what}: {eq.message()}")
@@ -217,7 +220,7 @@ def main():
     # start: the lengths of straight legs to the target (rigid-leg kinematics), the solves
     # starting from the equilibrium there
     guess = np.linalg.norm(tops - base, axis=1)
-    near, warm = follow(model, actuate, settings, home, nominal, guess, STEPS)
+    near, warm = follow(model, actuate, settings, home, nominal, guess)
     if not bool(near.converged):
         print(f"inverse kinematics, start point: {near.message()}")
         return 1
