@@ -17,7 +17,8 @@ plate (a rigid body, 0.1 kg). A dead force F = (1, 0.5, -2) N acts on the plate 
    the plate. The scene is built once, at the nominal lengths; another length is another
    stress-free shape of the leg's elements (the rest twists ``d0`` and lengths scaled by
    ``L / L_nominal``, :func:`length_actuation`, model arrays: no recompilation). The plate
-   pose is solved for given length changes (mm) ``DELTAS``.
+   pose is solved for given length changes (mm) ``DELTAS``, in increments of at most
+   0.1 mm, each solve starting from the last equilibrium (:func:`follow`).
 2. Inverse kinematics: ``sj.solve_inverse`` with that actuation map (any differentiable
    ``actuate(model, u)`` will do) finds the six lengths that bring the plate to a target
    pose (translated by (3, -2, 5) mm and turned by 3 deg about (1, 1, 0)): the targets

@@ -110,8 +110,7 @@ def main():
     squeeze = np.asarray(sphere["normal_force"]) / 3.0
     force = np.asarray(sphere["force"])
     penetration = np.asarray(sphere["max_penetration"])
-    rods = result.contacts.get("rods", {})
-    rod_rod = np.asarray(rods.get("normal_force", np.zeros_like(t)))
+    rod_rod = np.asarray(result.contacts["rods"]["normal_force"])   # finger-finger
     tension = np.asarray(result.tendon_tension("t0"))
     beam = float(beam_squeeze(TENSION))
     horizontal = float(np.linalg.norm(force[-1, :2]) / max(squeeze[-1], 1e-300))
