@@ -16,6 +16,11 @@ the package:
   here with scipy;
 * bending actuator (Fig. 22): the section constant EI_y of a half disc, planar motion and
   the work-energy theorem;
+* three-finger gripper on a palm (dynamic closing): at rest the squeeze of
+  small-deflection beam theory, the three fingers pressing alike; six-leg parallel robot:
+  its inverse kinematics checked on the plate body, its dynamic move settling at the
+  static equilibrium (its forward kinematics against shooting:
+  tests/test_parallel_robot_shooting.py);
 * the measured tendon-driven robot (real data): the tendon's circular arc and tension
   (pure bending by a tendon at a constant offset) and the robot's three-fold symmetry;
 * closed-loop control: model-predictive tracking beats the quasi-static open loop where
@@ -66,6 +71,8 @@ FIGURES = {
     "parallel_robot": ["shapes.png", "sway.png"],
     "catheter_bend": ["snapshots.png", "contact_force.png", "catheter_bend.gif"],
     "gripper": ["grasp.png", "squeeze.png"],
+    "three_finger_gripper": ["snapshots.png", "contact_force.png"],
+    "six_leg_parallel_robot": ["shapes.png", "move.png"],
     "real_tdcr_tendon": ["tip_heights.png"],
     "magnetic_catheter": ["steering.png", "tip_angle.png", "swing.png"],
     "real_pazy_wing": [],
@@ -80,11 +87,11 @@ FIGURES = {
 # then silicone) and its cache is reused by tests/test_notebooks.py (same folder name).
 LANES = (("helical_motion", "spring_steel_rod", "silicone_body", "pure_bending",
           "princeton_replay", "calibrate_princeton", "catheter_bend", "parallel_robot",
-          "magnetic_catheter", "learn_policy"),
+          "magnetic_catheter", "learn_policy", "six_leg_parallel_robot"),
          ("free_planar_rotation", "magellan_catheter", "bending_actuator",
           "dynamic_identification", "princeton_sweep", "tendon_actuation",
           "contact_catheter", "gripper", "real_tdcr_tendon", "real_pazy_wing",
-          "mpc_tendon_tracking"))
+          "mpc_tendon_tracking", "three_finger_gripper"))
 CACHE_NAMES = ("jax_compilation_cache", "jax_compilation_cache_lane1")
 
 
@@ -119,7 +126,7 @@ def examples(request, tmp_path_factory):
         pool = ThreadPoolExecutor(max_workers=1)
         pools.append(pool)
         for name in lane:
-            if any(name in test for test in selected):
+            if any(test.startswith(f"test_{name}") for test in selected):
                 futures[name] = pool.submit(run_example, name, tmp_path_factory.mktemp(name),
                                             cache)
     yield futures
@@ -395,6 +402,53 @@ def test_gripper(examples):
     force = np.asarray(s["force_N"])
     assert np.abs(force[:, 1]).max() <= 1e-9 * max(s["squeeze_N"])
     assert max(s["max_penetration_m"]) < 1e-2 * s["finger_radius_m"]
+
+
+def test_three_finger_gripper(examples):
+    """Three tendon-driven fingers on a palm close dynamically on a fixed sphere (with
+    friction) and settle. At rest the regularized friction is gone, so each finger's
+    squeeze is the frictionless cantilever's: F = 3 T d/(2 z_c) - 3 EI g/z_c^3 (as for the
+    two-finger gripper), to 3 %. The three fingers press alike: the sphere's net force on
+    them has no horizontal part (to 1e-9 of the squeeze). The fingers' tips stay more
+    than two contact radii apart (distance r sqrt(3) at radius r from the axis), so the
+    finger-finger contact force is zero; penetration below 1 % of the finger's radius; the
+    palm, held by the stiff wrist, moves by less than a micrometre."""
+    s, _ = examples["three_finger_gripper"].result()
+    assert s["converged"]
+    T, d, EI = s["tension_final_N"], s["tendon_offset_m"], s["EI_Nm2"]
+    zc, g, r = s["sphere_z_m"], s["gap_m"], s["finger_radius_m"]
+    assert s["tension_N"][-1] == pytest.approx(T, rel=1e-12)
+    expected = 1.5 * T * d / zc - 3.0 * EI * g / zc**3
+    assert s["final_squeeze_N"] == pytest.approx(expected, rel=3e-2)
+    assert s["final_horizontal_over_squeeze"] < 1e-9
+    assert min(s["final_tip_radial_m"]) * math.sqrt(3) > 2 * r
+    assert max(s["rod_rod_normal_force_N"]) == 0.0
+    assert s["max_penetration_over_radius"] < 1e-2
+    assert s["palm_max_displacement_m"] < 1e-6
+
+
+def test_six_leg_parallel_robot(examples):
+    """Six legs welded to a plate: the welds hold; inverse kinematics by the legs'
+    lengths reaches its target, checked on the plate body of a forward solve (its six
+    attachment points fix its pose); the dynamic move by the base drives settles at the
+    static equilibrium of the clamps moved by the same strokes, which is within 1 % of
+    the largest stroke of the target (pushing a clamp by delta instead of inserting delta
+    more leg differs at second order). The forward kinematics against an independent
+    shooting solution: tests/test_parallel_robot_shooting.py."""
+    s, _ = examples["six_leg_parallel_robot"].result()
+    assert s["converged"]
+    length = min(s["nominal_lengths_m"])
+    assert s["max_weld_gap_m"] < 1e-10 * length
+    ik = s["inverse"]
+    assert ik["reached"]
+    assert ik["plate_position_error_m"] < 1e-8 * length
+    assert ik["plate_angle_error_rad"] < 1e-7
+    dyn = s["dynamic"]
+    stroke = np.abs(dyn["strokes_m"]).max()
+    assert stroke > 1e-3
+    assert dyn["settle_position_error_m"] < 1e-4 * stroke
+    assert dyn["settle_angle_error_rad"] < 1e-5
+    assert dyn["static_to_target_m"] < 1e-2 * stroke
 
 
 def test_real_pazy_wing_from_the_shipped_data(examples):
