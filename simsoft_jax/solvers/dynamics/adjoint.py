@@ -23,6 +23,7 @@ derivative is the one forward mode gives (:func:`~.newton.replay`), in reverse o
 from __future__ import annotations
 
 from functools import partial
+import contextlib
 import dataclasses
 from typing import NamedTuple
 
@@ -30,6 +31,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .. import compile_cache
 from ...math.xla import jit, traced
 from ...physics import element
 from ..newton import implicit_cotangent
@@ -201,15 +203,20 @@ def _reverse_forward(programs: Programs, model, settings, state):
     perturbed = Perturbed(*(tuple(x.perturbed for x in jax.tree_util.tree_leaves(
         t, is_leaf=is_primal)) for t in (model, settings)))
     model, settings, state = values(model), values(settings), values(state)
-    if state is None and settings.save_every == 1 and not traced(model, settings):
+    concrete = not traced(model, settings, state)
+    if state is None and settings.save_every == 1 and concrete:
         traj = programs.driven(model, settings)
-        if bool(traj.converged) and np.all(np.asarray(traj.substeps) == 1):
+        # a failed rollout has no derivative (NaN): its sub-steps need no record
+        if not bool(traj.converged) or np.all(np.asarray(traj.substeps) == 1):
             traj = jax.tree_util.tree_map(jnp.asarray, traj)
             mu = (traj.multipliers if traj.multipliers is not None
                   else jnp.zeros(traj.time.shape + (0,)))
-            return traj, (perturbed, model, settings, None, (traj.R, traj.p, traj.v, mu),
-                          None)
-    traj, records = programs.recorded(model, settings, state)
+            return traj, (perturbed, model, settings, None,
+                          (traj.R, traj.p, traj.v, mu, traj.converged), None)
+    args = (model, settings, state)
+    with (compile_cache.first_call("recorded rollout", args) if concrete
+          else contextlib.nullcontext()):
+        traj, records = programs.recorded(*args)
     return traj, (perturbed, model, settings, state, None, records)
 
 
@@ -220,8 +227,10 @@ def _reverse_backward(programs: Programs, residuals, traj_bar):
     bar = (traj_bar.time, traj_bar.R, traj_bar.p, traj_bar.v, traj_bar.final)
     bar = jax.tree_util.tree_map(
         zero, bar, is_leaf=lambda x: isinstance(x, jax.custom_derivatives.SymbolicZero))
-    return backward_program(programs, perturbed, model, settings, state, saved, records,
-                            bar)
+    args = (model, settings, state, saved, records, bar)
+    with (contextlib.nullcontext() if traced(args) else
+          compile_cache.first_call("rollout gradient", args, perturbed)):
+        return backward_program(programs, perturbed, *args)
 
 
 reverse_rollout.defvjp(_reverse_forward, _reverse_backward, symbolic_zeros=True)
@@ -233,7 +242,7 @@ def backward_program(programs: Programs, perturbed: Perturbed, model, settings, 
     """The cotangents ``(model, settings, state)`` of :func:`reverse_rollout` (None at
     the leaves not differentiated) for the cotangents ``bar = (time, R, p, v, final)``
     of the trajectory (the rest has no derivative), from the steps' ``records`` or, when
-    None, from the ``saved`` states ``(R, p, v, multipliers)`` of every step
+    None, from the ``saved`` states ``(R, p, v, multipliers, converged)`` of every step
     (:func:`records_from_states`). The start state (``state``, or
     :func:`~.rollout.initial_state` of the model when None) is differentiated here too."""
     time_bar, R_bar, p_bar, v_bar, final_bar = bar
@@ -244,7 +253,9 @@ def backward_program(programs: Programs, perturbed: Perturbed, model, settings, 
     else:
         start = state
     if records is None:
+        *saved, converged = saved
         records = records_from_states((model, settings), start, *saved)
+        records = records._replace(ok=records.ok & converged)
     zeros = jnp.zeros((records.count.shape[0],) + start.vd.shape)
     saved_bar = State(R_bar[1:], p_bar[1:], v_bar[1:], zeros, zeros, time_bar[1:])
     s_bar, q_bar = reverse_steps(rebuild, floats, records, saved_bar, final_bar)

@@ -4,7 +4,8 @@ the steps) and the energy of a state.
 ``simulate(model, settings, state=None)`` reads everything from the one Model: inertia
 (element mass matrices computed inside the trace), loads and their time laws, drive
 tables, initial velocities. Gradients go through each step's Newton solve by the implicit
-function theorem (``differentiable=True``). Closed-loop control: a policy called at the
+function theorem (``differentiable=True``: reverse mode by the discrete adjoint,
+:mod:`.adjoint`; ``"forward"``: each step's implicit derivative, forward and reverse). Closed-loop control: a policy called at the
 start of every step returns the Model that step is solved with (:func:`actuated`).
 """
 from __future__ import annotations
@@ -113,7 +114,7 @@ def initial_state(model: Model, t0=0.0, inert=None) -> State:
 
 
 def simulate(model: Model, settings: DynamicSettings, state: State | None = None,
-             differentiable: bool = False, throw: bool = False, control=None,
+             differentiable: bool | str = False, throw: bool = False, control=None,
              control_params=None, control_memory=None) -> Trajectory:
     """Roll out ``settings.steps`` steps of size ``settings.dt`` (``lax.scan``).
 
@@ -130,10 +131,18 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
     says so too, :func:`~simsoft_jax.solvers.compile_cache.first_call`). ``steps`` not a
     multiple of ``save_every``: the last ``steps % save_every`` steps are not taken.
     A step whose Newton solve fails is retried with halved sub-steps (down to
-    ``dt / 2**max_halvings``). ``differentiable=True`` differentiates every accepted
-    (sub-)step by the implicit function theorem at its solution
-    (:func:`~.newton.replay`; checkpointed scan: memory O(saved states)); derivatives of a
-    failed rollout are NaN. After the first failure the
+    ``dt / 2**max_halvings``). ``differentiable`` differentiates every accepted
+    (sub-)step by the implicit function theorem at its solution; derivatives of a
+    failed rollout are NaN. ``True`` (or ``"reverse"``): reverse mode only (``jax.grad``,
+    ``jax.vjp``, ``jax.jacrev``; ``jax.jvp`` raises JAX's TypeError about a custom_vjp)
+    by the discrete adjoint (:func:`~.adjoint.reverse_rollout`): the forward pass is the
+    plain rollout (called on arrays from the start state with ``save_every == 1``, the
+    program of :func:`~simsoft_jax.run` itself: no new compile), the backward pass a
+    program of its own, a reverse scan over the steps with one transposed solve each
+    (memory: the states of every step). ``"forward"``: each step carries its implicit
+    derivative (:func:`~.newton.replay`; checkpointed scan, memory O(saved states)),
+    for ``jax.jvp`` / ``jax.jacfwd`` (reverse mode works too, with a longer first
+    compile); closed-loop ``control`` always takes this path. After the first failure the
     state is frozen and ``converged`` is False, ``failed_at`` the time of the failing step,
     ``status``/``cause``/:meth:`Trajectory.message` say why. ``throw=True`` raises
     :class:`~simsoft_jax.solvers.status.SolveError` instead. ``state`` defaults to
