@@ -13,6 +13,7 @@ import pytest
 
 import simsoft_jax as sj
 from simsoft_jax.solvers import dynamics as dy
+from test_compile_once import compilations
 from test_dynamics_gradients import SCENE
 from test_joints_dynamics import loop_scene
 
@@ -85,3 +86,24 @@ def test_forward_mode_needs_the_forward_option():
     assert abs(float(forward) - float(reverse)) <= 1e-9 * abs(float(forward))
     with pytest.raises(ValueError, match="differentiable"):
         dy.simulate(model, settings, differentiable="sideways")
+
+
+def test_gradient_reuses_the_compiled_rollout():
+    """After a plain rollout of a structure (the program of ``sj.run``), jax.grad through
+    the differentiable rollout compiles its backward program only, and a second gradient
+    (another stiffness) compiles nothing."""
+    model = sj.build_model(sj.Scene.from_dict(SCENE))
+    settings = dy.DynamicSettings(dt=0.01, steps=7, rho_inf=0.9)
+    dy.simulate(model, settings)
+
+    def tip(s):
+        return dy.simulate(model.replace(stiffness=model.stiffness * s), settings,
+                           differentiable=True).p[-1, -1, 2]
+
+    with compilations() as first:
+        jax.grad(tip)(1.0)
+    solvers = {name: n for name, n in first.items() if "program" in name or "chunk" in name}
+    assert solvers == {"jit(backward_program)": 1}, first
+    with compilations() as again:
+        jax.grad(tip)(1.1)
+    assert not any("program" in name or "chunk" in name for name in again), again
