@@ -1,10 +1,12 @@
 """Reverse mode of a differentiable rollout by the discrete adjoint of its steps.
 
-:func:`adjoint_rollout` wraps a whole rollout in ``jax.custom_vjp``. Its forward is the
-plain rollout (no derivative in it), which also keeps, per macro step, the state it
-started from and its accepted sub-steps (:class:`Records`: the increments ``w`` and
-multipliers ``mu``, memory O(steps x nodes)). Its backward is a program of its own: a
-reverse ``lax.scan`` over the steps. A sub-step maps ``s_n`` to
+:func:`reverse_rollout` wraps a whole rollout in ``jax.custom_vjp``. Its forward is the
+plain rollout (no derivative in it): the compiled program of :func:`~simsoft_jax.run`
+when it saves every step (the per-step increments ``w`` are recovered from the saved
+states), else a rollout that also keeps, per macro step, the state it started from and
+its accepted sub-steps (:class:`Records`: the increments ``w`` and multipliers ``mu``).
+Memory: O(steps x nodes), the states of every step. Its backward is a program of its
+own: a reverse ``lax.scan`` over the steps. A sub-step maps ``s_n`` to
 ``s_{n+1} = N(s_n, w_n; q)`` (spec S54, S66) with ``w_n`` solving
 ``F(w, mu; s_n, q) = 0``; for the cotangent ``sbar_{n+1}``:
 
@@ -22,9 +24,9 @@ derivative is the one forward mode gives (:func:`~.newton.replay`), in reverse o
 """
 from __future__ import annotations
 
-from functools import partial
 import contextlib
 import dataclasses
+from functools import partial
 from typing import NamedTuple
 
 import jax

@@ -5,8 +5,9 @@ the steps) and the energy of a state.
 (element mass matrices computed inside the trace), loads and their time laws, drive
 tables, initial velocities. Gradients go through each step's Newton solve by the implicit
 function theorem (``differentiable=True``: reverse mode by the discrete adjoint,
-:mod:`.adjoint`; ``"forward"``: each step's implicit derivative, forward and reverse). Closed-loop control: a policy called at the
-start of every step returns the Model that step is solved with (:func:`actuated`).
+:mod:`.adjoint`; ``"forward"``: each step's implicit derivative, forward and reverse).
+Closed-loop control: a policy called at the start of every step returns the Model that
+step is solved with (:func:`actuated`).
 """
 from __future__ import annotations
 
@@ -178,7 +179,8 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
         args = (model, as_traced(settings), state, control_params, control_memory)
         with (contextlib.nullcontext() if traced(args) else
               compile_cache.first_call("rollout", args, differentiable, control)):
-            traj = rollout_program(*args, differentiable=differentiable, control=control)
+            traj = rollout_program(*args, differentiable=bool(differentiable),
+                                   control=control)
     if throw:
         raise_if_failed("dynamic", traj.converged, traj.status, traj.cause, traj.failed_at,
                         traj.residual)
@@ -364,11 +366,7 @@ def recorded_program(model: Model, settings: DynamicSettings, state: State | Non
     return _run(model, settings, state, None, None, False, None, record=True)
 
 
-def _plain(model: Model, settings: DynamicSettings, state: State | None) -> Trajectory:
-    return rollout_program(model, settings, state)
-
-
-ADJOINT = Programs(plain=_plain, recorded=recorded_program, driven=driven,
+ADJOINT = Programs(plain=rollout_program, recorded=recorded_program, driven=driven,
                    initial=initial_state)
 """The rollout programs of the adjoint of :func:`simulate` (``differentiable=True``)."""
 
