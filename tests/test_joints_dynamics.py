@@ -193,7 +193,7 @@ def test_gradients_through_a_rollout_of_the_loop_match_central_differences(loop_
     """d(plate position after 30 steps) / d(plate mass, rod stiffness scale, plate inertia
     I_xx), along a direction that moves all three, by the implicit derivative of each step
     against central differences (1e-5). One compiled program serves both (the primal of
-    ``jax.jvp``)."""
+    ``jax.jvp``; forward mode: ``differentiable="forward"``)."""
     settings = DynamicSettings(dt=0.005, steps=30, rho_inf=0.9)
     plate = dict(loop_model.structure.bodies)["plate"]
     k = list(loop_model.structure.mass_nodes).index(plate)
@@ -204,7 +204,7 @@ def test_gradients_through_a_rollout_of_the_loop_match_central_differences(loop_
             loop_model, mass=loop_model.mass.at[k].set(mass),
             stiffness=loop_model.stiffness * stiff,
             mass_inertia=loop_model.mass_inertia.at[k, 0, 0].set(inertia))
-        return simulate(model, settings, differentiable=True).p[-1, plate]
+        return simulate(model, settings, differentiable="forward").p[-1, plate]
 
     x0 = jnp.array([0.05, 1.0, 1e-4])
     direction = x0 * jnp.array([1.0, -0.7, 0.5])      # relative changes of each

@@ -139,3 +139,31 @@ def implicit_tangent(problem, params, solution, dparams):
     scale = jnp.where(problem.valid(params), 1.0, jnp.nan)
     delta = jax.tree_util.tree_map(lambda d: d * scale, delta)
     return problem.push(params, solution, delta)
+
+
+def implicit_cotangent(problem, params_of, x, solution, cotangent):
+    """The cotangent of ``x`` for the cotangent ``cotangent`` of :func:`implicit`'s
+    solution at the parameters ``params_of(x)``: the transpose of
+    :func:`implicit_tangent` (the discrete adjoint), ``x`` the differentiated inputs
+    (a pytree of float arrays) the parameters are made of.
+
+    With the free unknowns' cotangent ``c`` (from the transposed ``merge``), the adjoint
+    ``lambda = J^-T c`` is one transposed solve with the factors of the forward solve
+    (``problem.linear_solve`` transposed: ``lax.custom_linear_solve``'s
+    ``transpose_solve``); then ``-lambda . dF/dx`` (one reverse pass of
+    ``problem.residual``), plus the prescribed dofs' part through ``prescribed``."""
+    params = params_of(x)
+    moved, prescribed_vjp = jax.vjp(lambda y: problem.prescribed(params_of(y), solution), x)
+    zeros = jax.tree_util.tree_map(jnp.zeros_like, moved)
+    _, push_vjp = jax.vjp(lambda d: problem.push(params, solution, d), zeros)
+    scale = jnp.where(problem.valid(params), 1.0, jnp.nan)
+    delta = jax.tree_util.tree_map(lambda d: d * scale, push_vjp(cotangent)[0])
+    _, merge_vjp = jax.vjp(lambda f, m: problem.merge(params, solution, f, m), zeros, zeros)
+    free, moved_bar = merge_vjp(delta)
+    r, residual_vjp = jax.vjp(lambda y, d: problem.residual(params_of(y), solution, d), x,
+                              zeros)
+    adjoint = jax.linear_transpose(lambda rhs: problem.linear_solve(params, solution, rhs),
+                                   r)(free)[0]
+    x_bar, moved_more = residual_vjp(jax.tree_util.tree_map(jnp.negative, adjoint))
+    moved_bar = jax.tree_util.tree_map(jnp.add, moved_bar, moved_more)
+    return jax.tree_util.tree_map(jnp.add, x_bar, prescribed_vjp(moved_bar)[0])

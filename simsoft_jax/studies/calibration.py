@@ -327,7 +327,7 @@ def fit_trajectory(model: Model, settings: DynamicSettings, node: int,
                          f"steps saved every {settings.save_every}, got {measured.shape}")
 
     def residual_fn(x):
-        traj = simulate(apply_scales(model, names, x), settings, differentiable=True)
+        traj = simulate(apply_scales(model, names, x), settings, differentiable="forward")
         return (traj.p[:, node] - measured).ravel(), traj.converged
 
     x0 = np.zeros(len(names)) if x0 is None else np.asarray(x0, float)

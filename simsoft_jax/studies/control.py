@@ -75,7 +75,7 @@ def step_jacobian(model: Model, settings: DynamicSettings, state: State, actuate
     NaN when the step fails."""
     one = settings.replace(steps=1, save_every=1)
     return jax.jacfwd(lambda x: simulate(actuate(model, x), one, state,
-                                         differentiable=True).p[-1, node])(
+                                         differentiable="forward").p[-1, node])(
         jnp.asarray(u, jnp.float64))
 
 

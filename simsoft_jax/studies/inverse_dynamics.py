@@ -56,7 +56,7 @@ def tracking_residual(actuate: Callable, node: int):
     the node's path minus the target path over a differentiable rollout, its Jacobian by
     forward mode, and whether every step converged."""
     def residual(model, settings, u, path):
-        traj = simulate(actuate(model, u), settings, differentiable=True)
+        traj = simulate(actuate(model, u), settings, differentiable="forward")
         p = traj.p[:, node]
         r = (p - path).ravel()
         return r, (r, traj.converged, p)

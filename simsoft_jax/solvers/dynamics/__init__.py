@@ -4,6 +4,7 @@ Modules: :mod:`.scheme` (settings, state, the scheme's parameters and update for
 :mod:`.residual` (dynamic residual and iteration matrix from element kernels),
 :mod:`.memory` (what Newton carries between steps: the reused matrix and the predictor),
 :mod:`.newton` (one step: modified Newton, its implicit derivative, sub-stepping),
+:mod:`.adjoint` (reverse mode of a rollout by the discrete adjoint of its steps),
 :mod:`.rollout` (start state, ``simulate`` with its closed-loop control hook, energy),
 :mod:`.driver` (host driver in compiled chunks with progress).
 """

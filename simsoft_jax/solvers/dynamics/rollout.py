@@ -4,8 +4,10 @@ the steps) and the energy of a state.
 ``simulate(model, settings, state=None)`` reads everything from the one Model: inertia
 (element mass matrices computed inside the trace), loads and their time laws, drive
 tables, initial velocities. Gradients go through each step's Newton solve by the implicit
-function theorem (``differentiable=True``). Closed-loop control: a policy called at the
-start of every step returns the Model that step is solved with (:func:`actuated`).
+function theorem (``differentiable=True``: reverse mode by the discrete adjoint,
+:mod:`.adjoint`; ``"forward"``: each step's implicit derivative, forward and reverse).
+Closed-loop control: a policy called at the start of every step returns the Model that
+step is solved with (:func:`actuated`).
 """
 from __future__ import annotations
 
@@ -25,12 +27,13 @@ from ...math import lie
 from ...couplings import mechanisms
 from ...math.xla import jit, traced
 from ...physics.assembly import apply_constraints, assemble_blocks, attachments_and_tangents
-from ...math.linalg import block_solve, factorize_coupled, solve_coupled
+from ...math.linalg import implicit_solve, implicit_solve_coupled
 from ...couplings.drives import reduce, slide_maps
 from ...model.loads import loads_at
 from ...model.model import Model
 from ..statics import as_traced
 from ..status import Status, describe, poison_gradient, raise_if_failed
+from .adjoint import Programs, Records, reverse_rollout
 from .memory import empty_newton_memory
 from .newton import advance, replay
 from .residual import border_sizes, dynamic_residual, element_inertia
@@ -102,18 +105,17 @@ def initial_state(model: Model, t0=0.0, inert=None) -> State:
         nb = 6 * len(s.coupling_nodes)
         r_z = system.r_z.at[nb:].set(
             mechanisms.constraint_curvature(model, model.R0, model.p0, model.v0))
-        x, z = solve_coupled(factorize_coupled(*system[1:5], s.identity_nodes()), -system.r,
-                             -r_z)
+        x, z = implicit_solve_coupled(*system[1:5], -system.r, -r_z, s.identity_nodes())
         vd0 = mechanisms.split(s, x, z)[0]
     else:
-        vd0 = -block_solve(blocks, g, s.identity_nodes())
+        vd0 = -implicit_solve(blocks, g, s.identity_nodes())
     if s.slide_drives:
         vd0 = jnp.einsum("nij,nj->ni", B, vd0)
     return State(model.R0, model.p0, model.v0, vd0, vd0, t0)
 
 
 def simulate(model: Model, settings: DynamicSettings, state: State | None = None,
-             differentiable: bool = False, throw: bool = False, control=None,
+             differentiable: bool | str = False, throw: bool = False, control=None,
              control_params=None, control_memory=None) -> Trajectory:
     """Roll out ``settings.steps`` steps of size ``settings.dt`` (``lax.scan``).
 
@@ -130,10 +132,18 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
     says so too, :func:`~simsoft_jax.solvers.compile_cache.first_call`). ``steps`` not a
     multiple of ``save_every``: the last ``steps % save_every`` steps are not taken.
     A step whose Newton solve fails is retried with halved sub-steps (down to
-    ``dt / 2**max_halvings``). ``differentiable=True`` differentiates every accepted
-    (sub-)step by the implicit function theorem at its solution
-    (:func:`~.newton.replay`; checkpointed scan: memory O(saved states)); derivatives of a
-    failed rollout are NaN. After the first failure the
+    ``dt / 2**max_halvings``). ``differentiable`` differentiates every accepted
+    (sub-)step by the implicit function theorem at its solution; derivatives of a
+    failed rollout are NaN. ``True`` (or ``"reverse"``): reverse mode only (``jax.grad``,
+    ``jax.vjp``, ``jax.jacrev``; ``jax.jvp`` raises JAX's TypeError about a custom_vjp)
+    by the discrete adjoint (:func:`~.adjoint.reverse_rollout`): the forward pass is the
+    plain rollout (called on arrays from the start state with ``save_every == 1``, the
+    program of :func:`~simsoft_jax.run` itself: no new compile), the backward pass a
+    program of its own, a reverse scan over the steps with one transposed solve each
+    (memory: the states of every step). ``"forward"``: each step carries its implicit
+    derivative (:func:`~.newton.replay`; checkpointed scan, memory O(saved states)),
+    for ``jax.jvp`` / ``jax.jacfwd`` (reverse mode works too, with a longer first
+    compile); closed-loop ``control`` always takes this path. After the first failure the
     state is frozen and ``converged`` is False, ``failed_at`` the time of the failing step,
     ``status``/``cause``/:meth:`Trajectory.message` say why. ``throw=True`` raises
     :class:`~simsoft_jax.solvers.status.SolveError` instead. ``state`` defaults to
@@ -158,25 +168,37 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
         state = State(*(jnp.asarray(x, jnp.float64) for x in state))
     if control is None and (control_params is not None or control_memory is not None):
         raise ValueError("control: control_params and control_memory need a control policy")
+    if differentiable not in (False, True, "reverse", "forward"):
+        raise ValueError(f"differentiable: expected False, True, 'reverse' or 'forward', "
+                         f"got {differentiable!r}")
     if _chunked(model, settings, state, differentiable, control):
-        from ..programs import PROGRAMS    # both import this module
-        from .driver import rollout, with_arrays
-        steps = settings.steps // settings.save_every * settings.save_every
-        traj, _ = rollout(with_arrays(model), float(settings.dt), steps * float(settings.dt),
-                          float(settings.rho_inf), settings.save_every, compiled=PROGRAMS,
-                          tolerance=float(settings.tolerance),
-                          max_iterations=int(settings.max_iterations),
-                          tangent=settings.tangent, max_halvings=settings.max_halvings,
-                          cut=False)
+        traj = driven(model, settings)
+    elif differentiable in (True, "reverse") and control is None:
+        traj = reverse_rollout(ADJOINT, model, as_traced(settings), state)
     else:
         args = (model, as_traced(settings), state, control_params, control_memory)
         with (contextlib.nullcontext() if traced(args) else
               compile_cache.first_call("rollout", args, differentiable, control)):
-            traj = rollout_program(*args, differentiable=differentiable, control=control)
+            traj = rollout_program(*args, differentiable=bool(differentiable),
+                                   control=control)
     if throw:
         raise_if_failed("dynamic", traj.converged, traj.status, traj.cause, traj.failed_at,
                         traj.residual)
     return traj
+
+
+def driven(model: Model, settings: DynamicSettings) -> Trajectory:
+    """The rollout from the start state by the program of :func:`~simsoft_jax.run` for
+    this structure (:func:`~.driver.rollout`, in chunks, kept in the cache folder), as
+    :func:`simulate` returns it (NumPy arrays, not cut after a failure)."""
+    from ..programs import PROGRAMS    # both import this module
+    from .driver import rollout, with_arrays
+    steps = settings.steps // settings.save_every * settings.save_every
+    return rollout(with_arrays(model), float(settings.dt), steps * float(settings.dt),
+                   float(settings.rho_inf), settings.save_every, compiled=PROGRAMS,
+                   tolerance=float(settings.tolerance),
+                   max_iterations=int(settings.max_iterations), tangent=settings.tangent,
+                   max_halvings=settings.max_halvings, cut=False)[0]
 
 
 def _chunked(model: Model, settings: DynamicSettings, state, differentiable: bool,
@@ -249,12 +271,15 @@ def first_carry(model: Model, state: State, control_memory=None) -> _StepCarry:
 
 
 def stepper(model: Model, inert, settings: DynamicSettings, differentiable: bool,
-            control=None, control_params=None):
+            control=None, control_params=None, record: bool = False):
     """One time step of size ``settings.dt`` as a ``lax.scan`` body ``(carry, _) ->
     (carry, (iterations, substeps))``; after the first failure the state stays frozen and
     the carry keeps the time, status, cause and residual of that failure. With a
     ``control`` policy the step is solved with the Model of :func:`actuated` (the element
-    inertia is computed again only when the policy replaced what it depends on)."""
+    inertia is computed again only when the policy replaced what it depends on).
+    ``differentiable``: each step carries its implicit derivative (:func:`~.newton.replay`).
+    ``record``: the outputs also hold the step's :class:`~.adjoint.Records` (its start
+    state and accepted sub-steps, for the adjoint's backward pass)."""
     def step(c: _StepCarry, _):
         m, ine, control_memory = model, inert, c.control
         if control is not None:
@@ -262,7 +287,7 @@ def stepper(model: Model, inert, settings: DynamicSettings, differentiable: bool
                                          c.control)
             ine = inert if _same_inertia(m, model) else element_inertia(m)
         adv = advance(*jax.lax.stop_gradient((m, ine, settings, c.state, c.memory)),
-                      keep_substeps=differentiable)
+                      keep_substeps=differentiable or record)
         adv = checkpoint_name(adv, "advance")
         new, its, subs, memory = adv.state, adv.iterations, adv.substeps, adv.memory
         status, cause, residual = adv.status, adv.cause, adv.residual
@@ -274,16 +299,29 @@ def stepper(model: Model, inert, settings: DynamicSettings, differentiable: bool
         control_memory = jax.tree_util.tree_map(hold, control_memory, c.control)
         first = ~c.failed & ~ok
         keep = lambda now, before: jnp.where(first, now, before)  # noqa: E731
+        out = (its, subs, Records(c.state, adv.sub, adv.substeps, ok)) if record else (its,
+                                                                                      subs)
         return _StepCarry(new, c.failed | ~ok, keep(c.state.t, c.failed_at),
                           keep(status, c.status), keep(cause, c.cause),
-                          keep(residual, c.residual), memory, control_memory), (its, subs)
+                          keep(residual, c.residual), memory, control_memory), out
     return step
 
 
-@jit(static_argnames=("differentiable", "control"))
-def rollout_program(model: Model, settings: DynamicSettings, state: State | None,
-              control_params=None, control_memory=None, differentiable: bool = False,
-              control=None) -> Trajectory:
+def _blocks(step, first: _StepCarry, settings: DynamicSettings):
+    """The steps in blocks of ``save_every`` from the carry ``first``: the last carry, and
+    per block the state at its end, the multipliers there, then the step outputs of
+    ``step`` (stacked (blocks, save_every))."""
+    def save_block(c, _):
+        c, out = jax.lax.scan(step, c, None, length=settings.save_every)
+        return c, (c.state, c.memory.multipliers) + out
+    return jax.lax.scan(save_block, first, None,
+                        length=settings.steps // settings.save_every)
+
+
+def _run(model: Model, settings: DynamicSettings, state: State | None, control_params,
+         control_memory, differentiable, control, record: bool = False):
+    """The rollout of :func:`rollout_program` and, with ``record``, the steps'
+    :class:`~.adjoint.Records` (else None)."""
     inert = element_inertia(model)
     if state is None:
         state = initial_state(model, 0.0, inert)
@@ -291,29 +329,46 @@ def rollout_program(model: Model, settings: DynamicSettings, state: State | None
             first_model = actuated(control, control_params, state, model, control_memory)[0]
             state = initial_state(first_model, 0.0, inert if _same_inertia(
                 first_model, model) else None)
-    step = stepper(model, inert, settings, differentiable, control, control_params)
-
-    def save_block(c, _):
-        c, (its, subs) = jax.lax.scan(jax.checkpoint(step, policy=SAVE_ADVANCE)
-                                      if differentiable else step, c,
-                                      None, length=settings.save_every)
-        st = c.state
-        return c, (st.t, st.R, st.p, st.v, its, subs, c.memory.multipliers)
-
-    n_saves = settings.steps // settings.save_every
     first = first_carry(model, state, control_memory)
-    final, (t, R, p, v, its, subs, mu) = jax.lax.scan(save_block, first, None,
-                                                      length=n_saves)
+    step = stepper(model, inert, settings, bool(differentiable), control, control_params,
+                   record)
+    final, (saved, mu, its, subs, *records) = _blocks(
+        jax.checkpoint(step, policy=SAVE_ADVANCE) if differentiable else step, first,
+        settings)
     cat = lambda first, rest: jnp.concatenate([first[None], rest])  # noqa: E731
     converged = ~final.failed
     inputs = (model, state, control_params, control_memory)
     R, p, v = (poison_gradient(converged, x, inputs) for x in
-               (cat(state.R, R), cat(state.p, p), cat(state.v, v)))
+               (cat(state.R, saved.R), cat(state.p, saved.p), cat(state.v, saved.v)))
     # None without multipliers: a zero-size output would trouble batched maps
     mu = cat(first.memory.multipliers, mu) if mu.shape[-1] else None
-    return Trajectory(cat(state.t, t), R, p, v, converged, final.failed_at,
+    return Trajectory(cat(state.t, saved.t), R, p, v, converged, final.failed_at,
                       its.reshape(-1), subs.reshape(-1), final.state, final.status,
-                      final.cause, final.residual, mu, final.control)
+                      final.cause, final.residual, mu, final.control), (
+                          records[0] if record else None)
+
+
+@jit(static_argnames=("differentiable", "control"))
+def rollout_program(model: Model, settings: DynamicSettings, state: State | None,
+              control_params=None, control_memory=None, differentiable=False,
+              control=None) -> Trajectory:
+    """The rollout of :func:`simulate` as one compiled program; ``differentiable``: each
+    step carries its implicit derivative (:func:`~.newton.replay`, forward and reverse
+    mode)."""
+    return _run(model, settings, state, control_params, control_memory, differentiable,
+                control)[0]
+
+
+@jit
+def recorded_program(model: Model, settings: DynamicSettings, state: State | None):
+    """The rollout of :func:`rollout_program` without derivative and the steps'
+    :class:`~.adjoint.Records`, for the adjoint's backward pass."""
+    return _run(model, settings, state, None, None, False, None, record=True)
+
+
+ADJOINT = Programs(plain=rollout_program, recorded=recorded_program, driven=driven,
+                   initial=initial_state)
+"""The rollout programs of the adjoint of :func:`simulate` (``differentiable=True``)."""
 
 
 def energy(model: Model, R, p, v):
