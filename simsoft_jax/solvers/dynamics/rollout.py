@@ -20,7 +20,7 @@ from jax.ad_checkpoint import checkpoint_name
 import numpy as np
 
 from .. import compile_cache
-from ...physics import element
+from ...physics import element, stick_slip
 from ...math import lie
 from ...couplings import mechanisms
 from ...math.xla import jit, traced
@@ -80,7 +80,8 @@ def initial_state(model: Model, t0=0.0, inert=None) -> State:
     ``M vdot_0 + G^T mu = -g``, ``G vdot_0 = -g''[v_0, v_0]``
     (:func:`simsoft_jax.couplings.mechanisms.constraint_curvature`). ``inert``: the model's
     :func:`~.residual.element_inertia` when the caller has it already (a program that
-    computes it once compiles faster)."""
+    computes it once compiles faster). With stick-slip friction the anchors are the start
+    stations (:func:`simsoft_jax.physics.stick_slip.initial`: no friction force yet)."""
     t0 = jnp.asarray(t0, jnp.float64)
     inert = element_inertia(model) if inert is None else inert
     zeros = jnp.zeros_like(model.v0)
@@ -109,7 +110,8 @@ def initial_state(model: Model, t0=0.0, inert=None) -> State:
         vd0 = -block_solve(blocks, g, s.identity_nodes())
     if s.slide_drives:
         vd0 = jnp.einsum("nij,nj->ni", B, vd0)
-    return State(model.R0, model.p0, model.v0, vd0, vd0, t0)
+    return State(model.R0, model.p0, model.v0, vd0, vd0, t0,
+                 stick_slip.initial(model, model.R0, model.p0, t0))
 
 
 def simulate(model: Model, settings: DynamicSettings, state: State | None = None,
@@ -155,7 +157,8 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
     """
     compile_cache.enable()
     if state is not None:
-        state = State(*(jnp.asarray(x, jnp.float64) for x in state))
+        state = State(*(None if x is None else jnp.asarray(x, jnp.float64)
+                        for x in state))
     if control is None and (control_params is not None or control_memory is not None):
         raise ValueError("control: control_params and control_memory need a control policy")
     if _chunked(model, settings, state, differentiable, control):
