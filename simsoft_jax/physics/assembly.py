@@ -120,7 +120,8 @@ def contact_and_tangent(model: Model, R, p, v=None):
     s = model.structure
     if not s.obstacle_kinds:
         return None
-    friction = v is not None and dynamic_friction(model)
+    friction = v is not None and contact.dynamic_friction(
+        s.friction_law, model.obstacle_friction, model.friction_anchor)
     rate = friction and model.friction_anchor is None    # the regularized law reads v
     a = jnp.asarray(s.element_nodes)
     ve = (jnp.concatenate([v[a], v[a + 1]], axis=1) if rate
@@ -145,17 +146,6 @@ def contact_and_tangent(model: Model, R, p, v=None):
         return value, jac[:, :12], jac[:, 12:] if rate else None
 
     return jax.vmap(one)(*element_poses(model, R, p), ve, element_data(model))
-
-
-def dynamic_friction(model: Model) -> bool:
-    """Whether the dynamic residual of ``model`` has friction with the obstacles (static,
-    trace time): some obstacle has a Coulomb coefficient, and with the stick-slip law
-    (``structure.friction_law``) the model holds the anchors of a step
-    (:func:`simsoft_jax.physics.stick_slip.anchored`; without them, e.g. for the start
-    state's accelerations, the springs are unstretched: no friction)."""
-    if model.obstacle_friction is None:
-        return False
-    return model.structure.friction_law != "stick_slip" or model.friction_anchor is not None
 
 
 def registered_and_tangents(model: Model, lam, R, p, v=None):

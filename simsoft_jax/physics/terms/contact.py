@@ -174,6 +174,14 @@ def stations(RA, pA, d, data: ContactData, kinds: tuple, n: int):
     return pen, load, normals, R, x
 
 
+def dynamic_friction(law: str, friction, anchor) -> bool:
+    """Whether the dynamic contact force has friction (static, trace time): Coulomb
+    coefficients ``friction`` (K,) given (not None) and, with the stick-slip ``law``
+    (``Structure.friction_law``), the anchors ``anchor`` of a step (without them, e.g.
+    for a start state's accelerations, the springs are unstretched: no friction)."""
+    return friction is not None and (law != "stick_slip" or anchor is not None)
+
+
 def _saturation(r):
     """``g(r)`` of (S2) for ``r >= STICK_LIMIT`` (increasing from ``r0`` to 1)."""
     soft = 1.0 - STICK_LIMIT

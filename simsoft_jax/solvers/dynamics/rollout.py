@@ -140,7 +140,8 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
     ``status``/``cause``/:meth:`Trajectory.message` say why. ``throw=True`` raises
     :class:`~simsoft_jax.solvers.status.SolveError` instead. ``state`` defaults to
     :func:`initial_state`; it is cast to float64 first, so weakly typed inputs do not
-    trigger a recompilation.
+    trigger a recompilation; with stick-slip friction a ``state`` without anchors gets
+    its stations as anchors (:func:`simsoft_jax.physics.stick_slip.initial`).
 
     Closed-loop control: ``control(t, state, model, control_params) -> Model`` is called
     at the start of every step with the :class:`State` there and the step is solved with
@@ -159,6 +160,8 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
     if state is not None:
         state = State(*(None if x is None else jnp.asarray(x, jnp.float64)
                         for x in state))
+        if state.anchor is None:   # stick-slip from a state without anchors: unstretched
+            state = state._replace(anchor=stick_slip.initial(model, state.R, state.p, state.t))
     if control is None and (control_params is not None or control_memory is not None):
         raise ValueError("control: control_params and control_memory need a control policy")
     if _chunked(model, settings, state, differentiable, control):
