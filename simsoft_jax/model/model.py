@@ -82,6 +82,8 @@ class Structure:
     contact_points: int = 0       # quadrature points per element for contact
     self_contact: bool = False    # rod-rod and self contact ([contact] self; statics)
     contact_pairs: int = 0        # element pairs the rod-rod narrow phase holds
+    friction_law: str = "regularized"   # dynamic friction ([contact] friction_law):
+                                  # "regularized" | "stick_slip" (anchors in the State)
 
     @property
     def n_elements(self) -> int:
@@ -174,7 +176,9 @@ class Model:
     :func:`simsoft_jax.model.loads.loads_at`, read by the friction); slip_displacement (E,) m:
     the slip scale of static friction (:mod:`simsoft_jax.physics.terms.static_friction`);
     self_exclusion () m: the arclength within which a rod's own elements do not touch
-    (rod-rod contact, :mod:`simsoft_jax.couplings.rod_pairs`).
+    (rod-rod contact, :mod:`simsoft_jax.couplings.rod_pairs`). friction_anchor (E,S,K,3)
+    m: the stick-slip anchors (world) of the contact stations during a dynamic step
+    (:func:`simsoft_jax.physics.stick_slip.anchored`; None otherwise, and in a built model).
     magnetic (:class:`~simsoft_jax.physics.terms.magnetic.MagneticPart`), fluid
     (:class:`~simsoft_jax.physics.terms.fluid.FluidPart`): the parts of the registered terms
     (:mod:`simsoft_jax.physics.terms.registry`), None when the scene lacks them.
@@ -230,6 +234,7 @@ class Model:
     obstacle_velocity: jax.Array = None
     slip_displacement: jax.Array = None
     self_exclusion: jax.Array = None
+    friction_anchor: jax.Array = None
     magnetic: object = None
     fluid: object = None
 
@@ -480,6 +485,7 @@ def build_model(scene, device: bool = True) -> Model:
                         QUADRATURE_POINTS) if obstacles or self_contact else 0,
         self_contact=self_contact,
         contact_pairs=scene.contact.max_pairs if self_contact else 0,
+        friction_law=scene.contact.friction_law if scene.contact else "regularized",
     )
     arrays = dict(
         R0=R0, p0=p0, d0=d0, length=length, stiffness=K,

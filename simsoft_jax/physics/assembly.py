@@ -122,9 +122,11 @@ def contact_and_tangent(model: Model, R, p, v=None):
     s = model.structure
     if not s.obstacle_kinds:
         return None
-    friction = v is not None and model.obstacle_friction is not None
+    friction = v is not None and contact.dynamic_friction(
+        s.friction_law, model.obstacle_friction, model.friction_anchor)
+    rate = friction and model.friction_anchor is None    # the regularized law reads v
     a = jnp.asarray(s.element_nodes)
-    ve = (jnp.concatenate([v[a], v[a + 1]], axis=1) if friction
+    ve = (jnp.concatenate([v[a], v[a + 1]], axis=1) if rate
           else jnp.zeros((s.n_elements, 12), p.dtype))
 
     def one(RA, pA, RB, pB, ve, data):
@@ -137,13 +139,13 @@ def contact_and_tangent(model: Model, R, p, v=None):
         def f(y):
             RA1, pA1 = lie.compose_exp(RA, pA, y[:6])
             RB1, pB1 = lie.compose_exp(RB, pB, y[6:12])
-            el = element_state(RA1, pA1, RB1, pB1, ve + y[12:], ve)
+            el = element_state(RA1, pA1, RB1, pB1, ve + y[12:] if rate else ve, ve)
             value = contact.force(el, data.contact, data.length, s.obstacle_kinds,
                                   s.contact_points, True)
             return value, value
 
-        jac, value = jax.jacfwd(f, has_aux=True)(jnp.zeros(24, RA.dtype))
-        return value, jac[:, :12], jac[:, 12:]
+        jac, value = jax.jacfwd(f, has_aux=True)(jnp.zeros(24 if rate else 12, RA.dtype))
+        return value, jac[:, :12], jac[:, 12:] if rate else None
 
     return jax.vmap(one)(*element_poses(model, R, p), ve, element_data(model))
 
@@ -241,7 +243,8 @@ def contact_data(model: Model):
     return contact.ContactData(model.contact_radius, model.contact_stiffness,
                                each(model.obstacles), friction,
                                each(model.slip_velocity), each(model.obstacle_velocity),
-                               jnp.asarray(ends) * model.contact_radius[:, None])
+                               jnp.asarray(ends) * model.contact_radius[:, None],
+                               model.friction_anchor)
 
 
 def static_friction_and_tangent(model: Model, R, p, previous, tangent: bool = True):

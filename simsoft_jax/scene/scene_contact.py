@@ -22,11 +22,12 @@ KINDS = tuple(OBSTACLE_KEYS)      # obstacle kinds (simsoft_jax.physics.obstacle
 ROW = 11                          # length of an obstacle's parameter row
 MOTION_KEYS = ("displacement", "profile")
 CONTACT_KEYS = ("radius", "self", "stiffness", "slip_velocity", "slip_displacement",
-                "quadrature_points", "self_exclusion", "max_pairs")
+                "quadrature_points", "self_exclusion", "max_pairs", "friction_law")
 STIFFNESS_FACTOR = 1.0e3       # default penalty: 1e3 EI / h^4 per element
 SLIP_VELOCITY = 1.0e-3         # m/s, default slip-velocity scale of the friction
 SLIP_FRACTION = 1.0e-3         # default slip-displacement scale (statics) / contact radius
 QUADRATURE_POINTS = 4
+FRICTION_LAWS = ("regularized", "stick_slip")   # [contact] friction_law (dynamics)
 SELF_NAME = "rods"             # the rod-rod entry of the result's contacts
 MAX_PAIRS = 8                  # default capacity of the rod-rod narrow phase (element pairs)
 MOST_QUADRATURE_POINTS = 64    # the largest contact.quadrature_points accepted
@@ -53,6 +54,7 @@ class ContactSpec(SpecBase):
     self_contact: bool = False            # rod-rod and self contact ([contact] self)
     self_exclusion: float | None = None   # m; None: 2 pi max(contact radius)
     max_pairs: int = MAX_PAIRS            # element pairs the narrow phase holds
+    friction_law: str = "regularized"     # dynamics: "regularized" | "stick_slip"
 
 
 def parameter_row(kind: str, values: dict) -> np.ndarray:
@@ -145,6 +147,9 @@ def parse_contact(value) -> ContactSpec:
     for key in ("radius", "stiffness", "slip_velocity", "slip_displacement", "self_exclusion"):
         if key in c:
             args[key] = positive(c[key], join("contact", key))
+    if "friction_law" in c:
+        args["friction_law"] = choice(c["friction_law"], "contact.friction_law",
+                                      FRICTION_LAWS)
     for key, most in (("quadrature_points", MOST_QUADRATURE_POINTS),
                       ("max_pairs", MOST_PAIRS)):
         if key in c:

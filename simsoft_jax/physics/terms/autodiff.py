@@ -40,7 +40,9 @@ def element_residual(structure, lam, dynamic: bool):
         if s.obstacle_kinds:
             r = r + contact.force(el, data.contact, data.length, s.obstacle_kinds,
                                   s.contact_points,
-                                  dynamic and data.contact.friction is not None)
+                                  dynamic and contact.dynamic_friction(
+                                      s.friction_law, data.contact.friction,
+                                      data.contact.anchor))
         registered = registry.forces(el, data.parts, lam)
         return r if registered is None else r + registered
 

@@ -39,7 +39,8 @@ derivative of the energy in those perturbations is
 pushes along ``+grad phi``). Tangents by ``jax.jacfwd`` (:mod:`.autodiff` and
 :func:`simsoft_jax.physics.assembly.contact_and_tangent`).
 
-Friction (dynamics). The contact point moves with the centreline velocity
+Friction (dynamics), two laws (``[contact] friction_law``, static
+``Structure.friction_law``). ``"regularized"``: the contact point moves with the centreline velocity
 ``v = R(xi) (N(xi, d) v_e)_u`` (world), relative to the obstacle (translating with
 ``v_o``) with ``v_r = v - v_o``; its part tangent to the obstacle
 ``v_t = v_r - (v_r . n) n`` (``n = grad phi``) meets the regularized Coulomb line load
@@ -47,6 +48,34 @@ Friction (dynamics). The contact point moves with the centreline velocity
 obstacle's coefficient, ``v_s`` the slip-velocity scale, ``[contact] slip_velocity``):
 viscous-like below ``v_s``, Coulomb's ``mu f_n`` opposite to the slip above it. It is
 not conservative; its tangent in the velocities is the C block of the iteration matrix.
+
+``"stick_slip"`` (elastic-plastic, "spring-slider" friction): each station has, per
+obstacle, an anchor ``a`` (m, world) where its tangential spring is unstretched; the
+anchors are part of the dynamic state (:mod:`simsoft_jax.physics.stick_slip`) and fixed
+within a step. The trial line load (N/m, world) is
+
+    f_trial = -k_t ((x - a) - ((x - a) . n) n)                                  (S1)
+
+with ``k_t`` the tangential stiffness, the element's normal penalty ``k`` (a sticking
+station carrying ``f_t`` is displaced by ``f_t / k``: at most ``mu`` times its
+penetration), and the friction line load is its return map onto the Coulomb disc
+``|f| <= c = mu f_n``:
+
+    f = f_trial                                 |f_trial| <= r0 c
+      = f_trial c g(|f_trial| / c) / |f_trial|    otherwise                      (S2)
+    g(r) = r0 + (1 - r0) tanh((r - r0) / (1 - r0))
+
+``r0 = STICK_LIMIT``: exact sticking (linear, no creep) up to ``r0 mu f_n``, a C2
+saturation to ``mu f_n`` above (value, slope and curvature continuous at ``r0``; no
+kink for Newton). After a converged step each anchor moves to the plastic position
+
+    a' = x + f / k_t                                                              (S3)
+
+(:func:`stick_slip_load`): a sticking station keeps its anchor (it moves only along the
+normal), a sliding one drags it at the distance ``|f| / k_t``, a station out of contact
+(``c = 0``) takes it along, so contact begins with an unstretched spring. Between
+``r0 mu f_n`` and ``mu f_n`` a held station creeps by ``c (r - g(r)) / k_t`` per step.
+The law has no velocity: its C block is zero, its K block comes by ``jax.jacfwd``.
 """
 from __future__ import annotations
 
@@ -60,6 +89,7 @@ from .. import element, obstacles
 from ...math import lie
 
 SMOOTHING = 0.01   # eps / r: width of the cubic start of the penalty, fraction of the radius
+STICK_LIMIT = 0.95  # r0 of (S2): exact sticking below r0 mu f_n, saturation to mu f_n above
 
 
 class ContactData(NamedTuple):
@@ -67,7 +97,8 @@ class ContactData(NamedTuple):
     obstacles (K,11) parameter rows (:mod:`simsoft_jax.physics.obstacles`), friction (K,) Coulomb
     coefficients, slip_velocity () m/s, velocity (K,3) m/s of the (translating)
     obstacles, caps (2,) m the end-cap lengths of its nodes A and B (the radius at a
-    rod's end, else 0; None: no caps)."""
+    rod's end, else 0; None: no caps), anchor (S,K,3) m the stick-slip anchors (world) of
+    its stations (None: the regularized law, or no friction)."""
     radius: jax.Array
     stiffness: jax.Array
     obstacles: jax.Array
@@ -75,6 +106,7 @@ class ContactData(NamedTuple):
     slip_velocity: jax.Array
     velocity: jax.Array
     caps: jax.Array = None
+    anchor: jax.Array = None
 
 
 def quadrature(n: int):
@@ -142,16 +174,57 @@ def stations(RA, pA, d, data: ContactData, kinds: tuple, n: int):
     return pen, load, normals, R, x
 
 
+def dynamic_friction(law: str, friction, anchor) -> bool:
+    """Whether the dynamic contact force has friction (static, trace time): Coulomb
+    coefficients ``friction`` (K,) given (not None) and, with the stick-slip ``law``
+    (``Structure.friction_law``), the anchors ``anchor`` of a step (without them, e.g.
+    for a start state's accelerations, the springs are unstretched: no friction)."""
+    return friction is not None and (law != "stick_slip" or anchor is not None)
+
+
+def _saturation(r):
+    """``g(r)`` of (S2) for ``r >= STICK_LIMIT`` (increasing from ``r0`` to 1)."""
+    soft = 1.0 - STICK_LIMIT
+    return STICK_LIMIT + soft * jnp.tanh((r - STICK_LIMIT) / soft)
+
+
+def stick_slip_load(x, anchor, load, normals, stiffness, mu):
+    """The stick-slip friction (S1)-(S3) at S stations against K obstacles: ``x`` (S,3)
+    the stations (m, world), ``anchor`` (S,K,3) their anchors, ``load`` (S,K) the normal
+    line loads ``f_n`` (N/m), ``normals`` (S,K,3) the unit normals, ``stiffness`` () the
+    tangential stiffness ``k_t`` (N/m^2), ``mu`` (K,) the Coulomb coefficients. Returns
+    the friction line loads (S,K,3) N/m (world) and the plastic anchors (S,K,3) of (S3).
+    Finite value and derivatives at zero slip (``|f_trial| = 0``) and out of contact
+    (``c = 0``): the sticking branch is linear and the other one is evaluated only on
+    safe arguments."""
+    gap = x[:, None, :] - anchor
+    along = jnp.einsum("ski,ski->sk", gap, normals)
+    trial = -stiffness * (gap - along[..., None] * normals)                    # (S1)
+    cap = mu * load
+    size = jax.vmap(jax.vmap(obstacles.safe_norm))(trial)
+    stick = size <= STICK_LIMIT * cap
+    slide = ~stick & (cap > 0.0)
+    safe_cap, safe_size = jnp.where(slide, cap, 1.0), jnp.where(slide, size, 1.0)
+    scale = jnp.where(stick, 1.0, jnp.where(
+        slide, safe_cap * _saturation(safe_size / safe_cap) / safe_size, 0.0))     # (S2)
+    f = scale[..., None] * trial
+    return f, x[:, None, :] + f / stiffness                                     # (S3)
+
+
 def force(el, data: ContactData, length, kinds: tuple, n: int, friction: bool = False):
-    """Nodal forces (12,) of the contact (and, when ``friction``, the friction) of one
-    element (:class:`~simsoft_jax.physics.terms.Element` ``el`` with ``el.pA``) with the obstacles
-    ``kinds`` (static), residual side (module docstring); ``length`` the element's
-    reference length (m), ``n`` the quadrature points."""
+    """Nodal forces (12,) of the contact (and, when ``friction``, the friction: the
+    stick-slip law against ``data.anchor`` when it is given, else the regularized law) of
+    one element (:class:`~simsoft_jax.physics.terms.Element` ``el`` with ``el.pA``) with the
+    obstacles ``kinds`` (static), residual side (module docstring); ``length`` the
+    element's reference length (m), ``n`` the quadrature points."""
     xi = station_points(n)
-    _, load, normals, R, _ = stations(el.RA, el.pA, el.d, data, kinds, n)
+    _, load, normals, R, x = stations(el.RA, el.pA, el.d, data, kinds, n)
     maps = jax.vmap(lambda t: element.velocity_field_map(t, el.d, el.P))(jnp.asarray(xi))
     f = jnp.einsum("nk,nki->ni", load, normals)                  # world line load (n,3)
-    if friction:
+    if friction and data.anchor is not None:
+        f = f + stick_slip_load(x, data.anchor, load, normals, data.stiffness,
+                                data.friction)[0].sum(1)
+    elif friction:
         v = jnp.einsum("nij,nj->ni", R, (maps @ el.ve)[:, :3])   # centreline velocity
         v = v[:, None, :] - data.velocity[None]                    # relative (n,K,3)
         vn = jnp.einsum("nki,nki->nk", normals, v)

@@ -25,6 +25,7 @@ import numpy as np
 from ...math.xla import jit
 from ..compile_cache import compile_stored
 from ...model.model import Model
+from ...physics import stick_slip
 from ..packing import Layout, pack
 from ..statics import as_traced
 from ..status import Status
@@ -124,8 +125,9 @@ def _block_outputs(carry, blocks: int, save_every: int) -> list:
 
 def _host_fields(out, carry) -> list:
     """What the host reads after a chunk, in the packing order of :func:`_chunk`."""
-    return list(out) + list(carry.state) + [carry.failed, carry.status, carry.cause,
-                                            carry.failed_at, carry.residual]
+    state = [x for x in carry.state if x is not None]   # anchors only with stick-slip
+    return list(out) + state + [carry.failed, carry.status, carry.cause, carry.failed_at,
+                                carry.residual]
 
 
 def _unpack(packed: np.ndarray, layout) -> tuple:
@@ -133,7 +135,7 @@ def _unpack(packed: np.ndarray, layout) -> tuple:
     cause, failed_at, residual))`` as NumPy arrays of the shapes and types in
     ``layout`` (:func:`_layout`)."""
     fields = layout.unpack(packed)
-    return tuple(fields[:7]), State(*fields[7:13]), tuple(fields[13:])
+    return tuple(fields[:7]), State(*fields[7:-5]), tuple(fields[-5:])
 
 
 def _layout(carry, blocks: int, save_every: int) -> Layout:
@@ -149,7 +151,8 @@ def _placeholder_carry(model: Model):
     """Host arrays of the shapes and types of the carry (read only when not ``fresh``)."""
     s = model.structure
     zeros6 = np.zeros((s.n_nodes, 6))
-    state = State(model.R0, model.p0, zeros6, zeros6, zeros6, np.float64(0.0))
+    state = State(model.R0, model.p0, zeros6, zeros6, zeros6, np.float64(0.0),
+                  stick_slip.initial(model, model.R0, model.p0, 0.0))
     shapes = jax.eval_shape(functools.partial(first_carry, model), state)
     return jax.tree_util.tree_map(lambda x: np.zeros(x.shape, x.dtype), shapes)
 

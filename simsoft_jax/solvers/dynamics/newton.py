@@ -16,6 +16,7 @@ import jax
 import jax.numpy as jnp
 
 from ...couplings import coupling
+from ...physics import stick_slip
 from ..batched import any_lane, select
 from ...math.linalg import CoupledFactors, factorize_coupled, implicit_solve_coupled
 from ...couplings.drives import drive_turn, held_increments, slide_maps
@@ -107,6 +108,11 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     w0 = jnp.where(mask > 0, w0, held_increments(model, state, fns.t1))
     sliding = bool(model.structure.slide_drives)
     identity = model.structure.identity_nodes()
+    # Stick-slip friction: exact Newton can cycle between a station's two sliding
+    # directions (its friction saturated at mu f_n both ways, flat in between iterates,
+    # while the solution sticks); halving a correction that does not shrink breaks the
+    # cycle (the onset-of-contact block of tests/test_friction_dynamics.py)
+    damped = stick_slip.active(model)
 
     def held(r_z):
         """The constraints hold at the current iterate: the joints' gaps / char_length and
@@ -134,6 +140,10 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
         # cap nodal rotation corrections at pi/4 (spec 4.7.6): keeps Newton on the branch
         dw, dmu = capped(0.25 * jnp.pi, dw, dmu)
         size = step_norm(model, dw)
+        if damped:   # a fresh correction no smaller than the last one is halved
+            halve = c.fresh & (size >= c.previous)
+            dw, dmu = jnp.where(halve, 0.5 * dw, dw), jnp.where(halve, 0.5 * dmu, dmu)
+            size = jnp.where(halve, 0.5 * size, size)
         finite = jnp.all(jnp.isfinite(dw))
         off_branch = jnp.max(jnp.linalg.norm((c.w + dw)[:, 3:], axis=1)) > 0.5 * jnp.pi
         bad = ~finite | off_branch

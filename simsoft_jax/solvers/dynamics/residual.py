@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 
 from ...couplings import coupling, rod_pairs
-from ...physics import inertia
+from ...physics import inertia, stick_slip
 from ...math import lie
 from .. import tendon_control
 from ...physics.assembly import (apply_constraints, assemble_blocks, assemble_vector, element_blocks,
@@ -124,13 +124,13 @@ def step_functions(model, inert, rho_inf, state: State, h,
     iteration matrix's element-block path."""
     beta_p, gamma_p = iteration_factors(rho_inf, h)
     t1 = state.t + h
-    loaded = loads_at(model, t1)
+    loaded = stick_slip.anchored(loads_at(model, t1), state.anchor, t1)
     sliding = bool(model.structure.slide_drives)
 
     def new_state(w):
         a1, v1, vd1 = fields(rho_inf, state, w, h)
         R1, p1 = jax.vmap(lie.compose_exp)(state.R, state.p, w)
-        return State(R1, p1, v1, vd1, a1, t1)
+        return State(R1, p1, v1, vd1, a1, t1, stick_slip.updated(loaded, R1, p1, t1))
 
     def residual(w, contact=True):
         s1 = new_state(w)

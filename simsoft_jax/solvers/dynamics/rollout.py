@@ -22,7 +22,7 @@ from jax.ad_checkpoint import checkpoint_name
 import numpy as np
 
 from .. import compile_cache
-from ...physics import element
+from ...physics import element, stick_slip
 from ...math import lie
 from ...couplings import mechanisms
 from ...math.xla import jit, traced
@@ -83,7 +83,8 @@ def initial_state(model: Model, t0=0.0, inert=None) -> State:
     ``M vdot_0 + G^T mu = -g``, ``G vdot_0 = -g''[v_0, v_0]``
     (:func:`simsoft_jax.couplings.mechanisms.constraint_curvature`). ``inert``: the model's
     :func:`~.residual.element_inertia` when the caller has it already (a program that
-    computes it once compiles faster)."""
+    computes it once compiles faster). With stick-slip friction the anchors are the start
+    stations (:func:`simsoft_jax.physics.stick_slip.initial`: no friction force yet)."""
     t0 = jnp.asarray(t0, jnp.float64)
     inert = element_inertia(model) if inert is None else inert
     zeros = jnp.zeros_like(model.v0)
@@ -111,7 +112,8 @@ def initial_state(model: Model, t0=0.0, inert=None) -> State:
         vd0 = -implicit_solve(blocks, g, s.identity_nodes())
     if s.slide_drives:
         vd0 = jnp.einsum("nij,nj->ni", B, vd0)
-    return State(model.R0, model.p0, model.v0, vd0, vd0, t0)
+    return State(model.R0, model.p0, model.v0, vd0, vd0, t0,
+                 stick_slip.initial(model, model.R0, model.p0, t0))
 
 
 def simulate(model: Model, settings: DynamicSettings, state: State | None = None,
@@ -148,7 +150,8 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
     ``status``/``cause``/:meth:`Trajectory.message` say why. ``throw=True`` raises
     :class:`~simsoft_jax.solvers.status.SolveError` instead. ``state`` defaults to
     :func:`initial_state`; it is cast to float64 first, so weakly typed inputs do not
-    trigger a recompilation.
+    trigger a recompilation; with stick-slip friction a ``state`` without anchors gets
+    its stations as anchors (:func:`simsoft_jax.physics.stick_slip.initial`).
 
     Closed-loop control: ``control(t, state, model, control_params) -> Model`` is called
     at the start of every step with the :class:`State` there and the step is solved with
@@ -165,7 +168,10 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
     """
     compile_cache.enable()
     if state is not None:
-        state = State(*(jnp.asarray(x, jnp.float64) for x in state))
+        state = State(*(None if x is None else jnp.asarray(x, jnp.float64)
+                        for x in state))
+        if state.anchor is None:   # stick-slip from a state without anchors: unstretched
+            state = state._replace(anchor=stick_slip.initial(model, state.R, state.p, state.t))
     if control is None and (control_params is not None or control_memory is not None):
         raise ValueError("control: control_params and control_memory need a control policy")
     if differentiable not in (False, True, "reverse", "forward"):

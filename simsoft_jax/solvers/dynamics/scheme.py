@@ -53,13 +53,16 @@ jax.tree_util.register_dataclass(
 
 class State(NamedTuple):
     """Nodal frames R (N,3,3), p (N,3); body velocities v, accelerations vd and the
-    generalized-alpha pseudo-acceleration a (N,6); time t (s)."""
+    generalized-alpha pseudo-acceleration a (N,6); time t (s); anchor (E,S,K,3) m: the
+    stick-slip friction's anchors (:mod:`simsoft_jax.physics.stick_slip`; None without that
+    law)."""
     R: jax.Array
     p: jax.Array
     v: jax.Array
     vd: jax.Array
     a: jax.Array
     t: jax.Array
+    anchor: jax.Array = None
 
 
 def alpha_parameters(rho_inf):
