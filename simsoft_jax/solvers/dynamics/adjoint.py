@@ -35,7 +35,7 @@ import numpy as np
 
 from .. import compile_cache
 from ...math.xla import jit, traced
-from ...physics import element
+from ...physics import element, stick_slip
 from ..newton import implicit_cotangent
 from .newton import StepProblem, SubSteps
 from .residual import element_inertia, step_functions
@@ -206,7 +206,9 @@ def _reverse_forward(programs: Programs, model, settings, state):
         t, is_leaf=is_primal)) for t in (model, settings)))
     model, settings, state = values(model), values(settings), values(state)
     concrete = not traced(model, settings, state)
-    if state is None and settings.save_every == 1 and concrete:
+    # the stick-slip anchors are not saved: their rollouts keep records
+    if (state is None and settings.save_every == 1 and concrete
+            and not stick_slip.active(model)):
         traj = programs.driven(model, settings)
         # a failed rollout has no derivative (NaN): its sub-steps need no record
         if not bool(traj.converged) or np.all(np.asarray(traj.substeps) == 1):
@@ -259,7 +261,9 @@ def backward_program(programs: Programs, perturbed: Perturbed, model, settings, 
         records = records_from_states((model, settings), start, *saved)
         records = records._replace(ok=records.ok & converged)
     zeros = jnp.zeros((records.count.shape[0],) + start.vd.shape)
-    saved_bar = State(R_bar[1:], p_bar[1:], v_bar[1:], zeros, zeros, time_bar[1:])
+    anchor = (None if start.anchor is None else
+              jnp.zeros((records.count.shape[0],) + start.anchor.shape))
+    saved_bar = State(R_bar[1:], p_bar[1:], v_bar[1:], zeros, zeros, time_bar[1:], anchor)
     s_bar, q_bar = reverse_steps(rebuild, floats, records, saved_bar, final_bar)
     s_bar = s_bar._replace(R=s_bar.R + R_bar[0], p=s_bar.p + p_bar[0],
                            v=s_bar.v + v_bar[0], t=s_bar.t + time_bar[0])
