@@ -31,6 +31,7 @@ import jax
 import jax.numpy as jnp
 
 from ..couplings import coupling, mechanisms
+from ..couplings.tendon_lengths import tension_controlled
 from ..physics.assembly import residual_and_tangent
 from ..math.linalg import factorize, positive_definite, solve_factored
 from ..model.loads import full_loads
@@ -75,7 +76,10 @@ def negative_eigenvalues(model: Model, eq, tangent=None) -> jax.Array:
     its full loads. ``tangent``: that tangent's blocks ``(diag, upper, lower)`` when at
     hand (the last Newton pass's, ``Equilibrium.tangent``), used for rods without joints
     or friction (the Newton tangent with friction holds its stick terms, which this count
-    leaves out); assembled here otherwise. Pure: jit- and vmap-able."""
+    leaves out); assembled here otherwise. Displacement-controlled tendons count at their
+    solved tensions (the statics solves them outside the bordered system,
+    :mod:`simsoft_jax.solvers.tendon_control`). Pure: jit- and vmap-able."""
+    model = tension_controlled(model)
     s = model.structure
     if tangent is not None and not (coupling.present(s) or model.obstacle_friction is not None):
         return count_negative_pivots(*symmetric_blocks(tangent))
