@@ -120,6 +120,7 @@ def test_tension_control_with_the_solved_tensions_slides_the_rod_the_same_way(sl
     np.testing.assert_allclose(replay.positions("a"), slid.positions("a"), atol=2e-8 * L)
 
 
+@pytest.mark.slow   # the differentiable rollout's compile
 def test_gradient_through_a_displaced_tendon_on_a_sliding_drive_equals_finite_differences():
     model = sj.build_model(sj.Scene.from_dict(tendon_scene(sliding=True)))
     settings = sj.DynamicSettings(dt=DT, steps=8, rho_inf=0.9)
@@ -199,6 +200,7 @@ def test_rod_carried_across_a_crossing_rod_on_a_sliding_drive_equals_the_plain_d
     assert np.all(middle_height(slid) > 1.5 * R_C)
 
 
+@pytest.mark.slow   # the differentiable rollout's compile
 def test_gradient_through_rod_contact_on_a_sliding_drive_equals_finite_differences():
     """Rod-rod contact with a drive sliding along the rod's axis: the contact's normal
     leans as the rod bends, so the rod slides; the rollout's derivative in the tip force
