@@ -2,9 +2,10 @@
 stress-free shape is prescribed, ``Delta l_k(q) = delta_k``, and its tension ``t_k`` is
 the unknown, the Lagrange multiplier of that constraint (Bertsekas' bordered KKT form).
 
-The rods' residual holds the tendon forces ``t_k grad l_k`` (:mod:`simsoft_jax.physics.terms.tendons`:
-the potential ``t l``) once the tensions are set from the multipliers
-(:func:`with_tensions`), and its tangent the tensions' geometric stiffness. Beside the
+The rods' residual holds the tendon forces ``t_k grad l_k``
+(:mod:`simsoft_jax.physics.terms.tendons`: the potential ``t l``) once the tensions are set
+from the multipliers (:func:`with_tensions`), and its tangent the tensions' geometric
+stiffness. Beside the
 chains the K tensions border the Newton system ``[[K, B], [C, D]]`` with
 
   B (N,6,K) = G^T, the residual per unit tension (the length gradients ``G`` in the

@@ -20,7 +20,7 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 
-from ..couplings.tendon_lengths import displaced, length_changes, tension_controlled
+from ..couplings.tendon_lengths import displaced, length_changes
 from .newton import implicit
 
 MAX_ITERATIONS = 30

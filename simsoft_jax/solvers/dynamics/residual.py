@@ -66,7 +66,8 @@ def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p,
     :func:`~simsoft_jax.physics.assembly.node_blocks`). ``slide = (C, B, mask)`` (see
     :func:`drives.slide_maps`) reduces sliding drive nodes to their slide unknown before the
     held dofs are eliminated. ``tangent``: the element-block path. The couplings are not
-    in it: :func:`step_functions` borders them on (:func:`simsoft_jax.couplings.coupling.couple`)."""
+    in it: :func:`step_functions` borders them on
+    (:func:`simsoft_jax.couplings.coupling.couple`)."""
     s = model.structure
     n = s.n_nodes
     a = jnp.asarray(s.element_nodes)
