@@ -49,7 +49,7 @@ def dynamic_iterations(model, state, k):
                                                   0.01).residual_and_matrix
 
     def body(_, w):
-        r, blocks = residual_and_matrix(w)
+        r, blocks = residual_and_matrix(w, jnp.zeros(0))   # no couplings: no multipliers
         return w - linalg.block_solve(blocks, r)
     return jax.lax.fori_loop(0, k, body, jnp.zeros_like(state.v))
 

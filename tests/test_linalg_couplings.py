@@ -254,6 +254,27 @@ def test_grad_and_jvp_through_implicit_solve_coupled(n1, n2):
     assert abs(directional - fd) < 1e-7 * abs(fd)
 
 
+def test_grad_through_implicit_solve_coupled_with_constant_border_rows():
+    """Reverse mode in b alone, the border's right-hand side c a constant (as the rod-rod
+    contact's zero border rows are): the gradient is ``(A^-T w)`` on the chain rows (dense
+    formula), where a right-hand side only partly linear in b once stopped the transpose."""
+    rng = np.random.default_rng(7)
+    n, m = 9, 12
+    blocks = random_blocks(n, rng)
+    B, C = rng.normal(size=(n, 6, m)), rng.normal(size=(m, n, 6))
+    D = -np.eye(m)
+    b, w_x, w_y = (rng.normal(size=s) for s in [(n, 6), (n, 6), m])
+    args = jnp_tree((blocks, B, C, D))
+
+    def loss(b):
+        x, y = linalg.implicit_solve_coupled(*args, b, jnp.zeros(m))
+        return jnp.sum(w_x * x) + jnp.sum(w_y * y)
+
+    grad = jax.grad(loss)(jnp.asarray(b))
+    ref = dense_derivatives(blocks, B, C, D, b, np.zeros(m), w_x, w_y)[0][4]
+    assert rel_err(grad, ref) < 1e-10
+
+
 @pytest.mark.parametrize("n, held", [(8, (0,)), (8, (0, 4)), (8, (3, 7)), (8, tuple(range(8))),
                                      (LIMIT + 4, (0,)), (LIMIT + 4, (0, 6, LIMIT + 3))])
 def test_identity_nodes_left_out_of_the_factorization(n, held):

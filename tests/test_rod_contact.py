@@ -221,14 +221,19 @@ def test_broad_phase_finds_the_folded_contacts_and_excludes_neighbours():
     assert touching(0, 1) and touching(0, 2)
 
 
+def test_dynamic_rod_contact_with_a_sliding_drive_or_a_displaced_tendon_is_read():
+    """Both combine with rod-rod contact in dynamics (tests/test_coupling_tendons.py)."""
+    dynamic = {"kind": "dynamic", "dt": 0.01, "t_end": 0.02}
+    slid = Scene.from_dict({**SCENE, "solver": dynamic, "constraints": [
+        {"kind": "drive", "rod": "top", "node": 0, "times": [0.0, 1.0],
+         "rotation": [[0, 0, 0], [0, 0, 0]], "slides_along": [1, 0, 0]}]})
+    np.testing.assert_array_equal(slid.constraints[0].slides_along, [1.0, 0.0, 0.0])
+    pulled = Scene.from_dict({**SCENE, "solver": dynamic, "tendons": [
+        {"name": "t", "rod": "top", "offset": [0.0, 0.001], "displacement": 1e-3}]})
+    assert pulled.tendons[0].displacement == 1e-3 and pulled.contact.self_contact
+
+
 @pytest.mark.parametrize("change, key", [
-    ({"solver": {"kind": "dynamic", "dt": 0.01, "t_end": 0.02},
-      "constraints": [{"kind": "drive", "rod": "top", "node": 0, "times": [0.0, 1.0],
-                       "rotation": [[0, 0, 0], [0, 0, 0]], "slides_along": [1, 0, 0]}]},
-     "constraints[0].slides_along"),
-    ({"solver": {"kind": "dynamic", "dt": 0.01, "t_end": 0.02},
-      "tendons": [{"name": "t", "rod": "top", "offset": [0.0, 0.001], "displacement": 1e-3}]},
-     "tendons[0].displacement"),
     ({"contact": {"radius": R_C, "self": False, "max_pairs": 4}}, "contact.max_pairs"),
     ({"contact": {"radius": R_C, "self": 1}}, "contact.self"),
     ({"obstacles": [{"name": "rods", "kind": "sphere", "center": [0.0, 0.0, 1.0],

@@ -70,6 +70,40 @@ def reduce(C, B, r, blocks):
     return jnp.einsum("nij,nj->ni", C, r), (diag, upper, lower)
 
 
+def restrict(structure, slide, r, blocks=None):
+    """Terms added to the chains' reduced system: the residual ``r`` (N,6) and the
+    block-tridiagonal ``blocks`` reduced by the sliding drives' maps ``slide = (C, B,
+    mask)`` (:func:`slide_maps`; None: none) as :func:`reduce` does, then their held rows
+    and columns zeroed (``mask``, else ``structure.free_mask()``; no identity rows: the
+    chains' own system holds them). Returns r, or ``(r, blocks)`` when blocks are given."""
+    mask = structure.free_mask()
+    if slide is not None:
+        C, B, mask = slide
+        if blocks is None:
+            r = jnp.einsum("nij,nj->ni", C, r)
+        else:
+            r, blocks = reduce(C, B, r, blocks)
+    if blocks is None:
+        return r * mask
+    diag, upper, lower = blocks
+    return r * mask, (mask[:, :, None] * diag * mask[:, None, :],
+                      mask[:-1, :, None] * upper * mask[1:, None, :],
+                      mask[1:, :, None] * lower * mask[:-1, None, :])
+
+
+def restrict_border(structure, slide, B, C):
+    """A coupling's border on the chains' reduced system: its columns B (N,6,m) become
+    ``mask_i C_i B_i`` and its rows C (m,N,6) ``C_j B_j mask_j``, the reduction of
+    :func:`reduce` with the sliding drives' maps ``slide = (C, B, mask)``
+    (:func:`slide_maps`; None: only the held dofs zeroed, ``structure.free_mask()``)."""
+    if slide is None:
+        mask = structure.free_mask()
+        return B * mask[:, :, None], C * mask[None]
+    Cs, Bs, mask = slide
+    return (jnp.einsum("nij,njm->nim", Cs, B) * mask[:, :, None],
+            jnp.einsum("mni,nij->mnj", C, Bs) * mask[None])
+
+
 def held_increments(model, state, t1):
     """Prescribed ``w`` of held dofs: 0 for clamps and pins, ``log(H_n^-1 H_c(t))`` for drives.
     A sliding drive keeps its current slide ``s_n = (p_n - p_c(t_n)) . e``: its target

@@ -26,6 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import broad_phase
+from .drives import restrict, restrict_border
 from ..physics.assembly import assemble_blocks, element_poses, rod_end_flags
 from ..physics.terms import rod_contact
 
@@ -136,8 +137,9 @@ def _pair_args(model, R, p, pairs: Pairs):
             jnp.asarray(model.contact_stiffness)[ef], jnp.asarray(model.length)[ef], ends[ef])
 
 
-def residual(model, R, p):
-    """The rod-rod contact residual (N,6) (held dofs zeroed; NaN on overflow)."""
+def residual(model, R, p, slide=None):
+    """The rod-rod contact residual (N,6) (held dofs zeroed, sliding drives reduced with
+    ``slide``, :func:`simsoft_jax.couplings.drives.restrict`; NaN on overflow)."""
     s = model.structure
     pairs = find_pairs(model, R, p)
     m = s.contact_points
@@ -145,7 +147,7 @@ def residual(model, R, p):
     g = jax.vmap(lambda *a: rod_contact.pair_residual(*a, m))(
         *_pair_args(model, R, p, pairs)) * pairs.active[:, None]
     r = _scatter(s.n_nodes, pairs.nodes, g)
-    return jnp.where(pairs.overflow, jnp.nan, r) * s.free_mask()
+    return restrict(s, slide, jnp.where(pairs.overflow, jnp.nan, r))
 
 
 def _scatter(n_nodes, nodes, g):
@@ -160,14 +162,16 @@ class Coupling(NamedTuple):
     D: jax.Array
 
 
-def system(model, R, p, r, blocks, T=None):
+def system(model, R, p, r, blocks, T=None, slide=None):
     """Add the rod-rod contact to a masked residual ``r`` (N,6) and block-tridiagonal
     tangent ``blocks`` (held dofs already identity rows): returns ``(r, blocks,
     Coupling)`` of the bordered Newton system (module docstring). ``T`` (N,6,6): the
     maps ``T_SE3(w)`` of a dynamic step's increments ``w`` (the unknowns there), which
-    multiply each node's columns of the pairs' tangents (None: statics, identity)."""
+    multiply each node's columns of the pairs' tangents (None: statics, identity).
+    ``slide``: the sliding drives' maps of a dynamic step (the chains reduced by them,
+    :func:`simsoft_jax.couplings.drives.slide_maps`), which reduce the contact's terms
+    and border alike (:func:`~simsoft_jax.couplings.drives.restrict`); None: none."""
     s = model.structure
-    mask = s.free_mask()
     pairs = find_pairs(model, R, p)
     m = s.contact_points
     g, k = jax.vmap(lambda *a: rod_contact.pair_residual_and_tangent(*a, m))(
@@ -178,14 +182,14 @@ def system(model, R, p, r, blocks, T=None):
                        T[pairs.nodes]).reshape(P, 24, 24)
     on = pairs.active.astype(p.dtype)
     g, k = g * on[:, None], k * on[:, None, None]
-    r = r + jnp.where(pairs.overflow, jnp.nan, _scatter(s.n_nodes, pairs.nodes, g)) * mask
     # blocks inside e and inside f join chain neighbours: into the chains
     per_element = jnp.zeros((s.n_elements, 12, 12), p.dtype).at[pairs.e].add(
         k[:, :12, :12]).at[pairs.f].add(k[:, 12:, 12:])
-    d, u, lo = assemble_blocks(s.n_nodes, s.element_nodes, per_element)
-    masked = (mask[:, :, None] * d * mask[:, None, :], mask[:-1, :, None] * u * mask[1:, None, :],
-              mask[1:, :, None] * lo * mask[:-1, None, :])
-    blocks = tuple(b + c for b, c in zip(blocks, masked))
+    g, added = restrict(s, slide, jnp.where(pairs.overflow, jnp.nan,
+                                            _scatter(s.n_nodes, pairs.nodes, g)),
+                        assemble_blocks(s.n_nodes, s.element_nodes, per_element))
+    r = r + g
+    blocks = tuple(b + c for b, c in zip(blocks, added))
     # cross blocks (e's nodes with f's): W on the distinct nodes of the pairs, U their
     # unit columns
     n, cap = s.n_nodes, coupled_nodes(s)
@@ -202,9 +206,10 @@ def system(model, R, p, r, blocks, T=None):
     real = uniq < n
     node = jnp.repeat(jnp.where(real, uniq, 0), 6)                           # (6 cap,)
     dof = jnp.tile(jnp.arange(6), cap)
-    unit = mask[node, dof] * jnp.repeat(real, 6)
+    unit = jnp.repeat(real, 6).astype(p.dtype)
     U = jnp.zeros((n, 6, 6 * cap), p.dtype).at[node, dof, jnp.arange(6 * cap)].set(unit)
     C = jnp.zeros((6 * cap, n, 6), p.dtype).at[:, node, dof].add(W * unit[None, :])
+    U, C = restrict_border(s, slide, U, C)
     r = jnp.where(crowded, jnp.nan, r)
     return r, blocks, Coupling(U, C, -jnp.eye(6 * cap, dtype=p.dtype))
 

@@ -446,12 +446,23 @@ def implicit_solve_coupled(blocks, B, C, D, b, c, identity: tuple = ()):
     if B.shape[-1] == 0:
         return implicit_solve(blocks, b, identity), c
     factors = factorize_coupled(blocks, B, C, D, identity)
+    # one flat right-hand side: a part of it that is constant in the tangent (the rod-rod
+    # contact's zero border rows) would otherwise stop reverse mode, whose transposed
+    # solve needs every right-hand side linear
+    size = b.size
 
-    def matvec(xy):
-        x, y = xy
-        return (block_matvec(blocks, x) + jnp.einsum("nja,a->nj", B, y),
-                jnp.einsum("anj,nj->a", C, x) + D @ y)
+    def unpack(v):
+        return v[:size].reshape(b.shape), v[size:]
 
-    return jax.lax.custom_linear_solve(
-        matvec, (b, c), solve=lambda _, r: solve_coupled(factors, *r),
-        transpose_solve=lambda _, r: solve_coupled(factors, *r, transpose=True))
+    def pack(x, y):
+        return jnp.concatenate([x.reshape(-1), y])
+
+    def matvec(v):
+        x, y = unpack(v)
+        return pack(block_matvec(blocks, x) + jnp.einsum("nja,a->nj", B, y),
+                    jnp.einsum("anj,nj->a", C, x) + D @ y)
+
+    return unpack(jax.lax.custom_linear_solve(
+        matvec, pack(b, c), solve=lambda _, r: pack(*solve_coupled(factors, *unpack(r))),
+        transpose_solve=lambda _, r: pack(*solve_coupled(factors, *unpack(r),
+                                                         transpose=True))))

@@ -18,6 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..couplings import coupling
 from ..solvers import compile_cache
 from ..analysis import contacts
 from ..model.built_models import Lru, forget_models, model_of, scene_of
@@ -193,7 +194,8 @@ class Result:
         if self.time is None:   # solved for displacement-controlled tendons
             return float(self.raw.tendon_tension[m])
         if s.tendon_displaced[m]:   # solved at every step: the rollout's multipliers
-            return np.asarray(self.raw.multipliers)[:, sum(s.tendon_displaced[:m])].copy()
+            at = coupling.tension_index(s, sum(s.tendon_displaced[:m]))
+            return np.asarray(self.raw.multipliers)[:, at].copy()
         tension = float(self.model.tendon_tension[m])
         law = self.model.tendon_law
         return tension * np.asarray(jax.vmap(law.scales)(jnp.asarray(self.time)))[:, m]

@@ -143,10 +143,7 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
     joints = parse_joints(_array_of_tables(raw, "joints"), rods, bodies, _node)
     check_mechanism(solver.kind, bodies, joints, constraints)
     profile = lambda value, path: _parse_profile(value, path, base_dir)  # noqa: E731
-    tendons = parse_tendons(_array_of_tables(raw, "tendons"), rods, joints, profile,
-                            solver.kind == "dynamic" and (bool(joints) or any(
-                                c.slides_along is not None for c in constraints
-                                if c.kind == "drive")))
+    tendons = parse_tendons(_array_of_tables(raw, "tendons"), rods, joints, profile)
     chambers = parse_chambers(_array_of_tables(raw, "chambers"), rods, profile)
     obstacles = parse_obstacles(_array_of_tables(raw, "obstacles"), profile,
                                 solver.kind == "dynamic")
@@ -155,8 +152,7 @@ def _parse_scene(d: Any, base_dir: Path) -> Scene:
                       if "magnetic_field" in raw else None)
     fluid = parse_fluid(raw["fluid"]) if "fluid" in raw else None
     check_fluid_rods(fluid, rods.values())
-    check_self_contact(contact, solver.kind, [o.name for o in obstacles], constraints,
-                       tendons)
+    check_self_contact(contact, [o.name for o in obstacles])
     if solver.kind == "dynamic":
         warn_short_features(loads, constraints, solver.dt)
     check_loads_on_held_nodes(raw.get("loads", []), loads, constraints)

@@ -153,12 +153,10 @@ def _check_pulls(profile, path):
         fail(path, "makes the tension negative (a tendon cannot push)")
 
 
-def parse_tendons(items: list, rods: dict, joints: tuple, parse_profile,
-                  mechanism: bool) -> tuple:
+def parse_tendons(items: list, rods: dict, joints: tuple, parse_profile) -> tuple:
     """``[[tendons]]`` -> :class:`~simsoft_jax.scene.scene_specs.TendonSpec` tuple. ``joints``:
     the scene's JointSpec tuple (a tendon with ``to_rod`` crosses its welds);
-    ``parse_profile(value, path)`` parses a ``profile`` table; ``mechanism``: the scene is
-    dynamic with joints or a sliding drive (no displacement control there yet)."""
+    ``parse_profile(value, path)`` parses a ``profile`` table."""
     from .scene_specs import TendonSpec
 
     out, seen = [], set()
@@ -177,9 +175,6 @@ def parse_tendons(items: list, rods: dict, joints: tuple, parse_profile,
                      f"{tension}")
         else:
             displacement = number(item["displacement"], join(path, "displacement"))
-            if mechanism:
-                fail(join(path, "displacement"), "displacement control in a dynamic scene "
-                     "with joints or a sliding drive is not supported yet (give tension)")
         profile = _profile(item, path, parse_profile)
         _check_pulls(profile, join(path, "profile"))
         out.append(TendonSpec(name=name, parts=parts, crossings=crossings, tension=tension,

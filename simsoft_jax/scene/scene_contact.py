@@ -157,22 +157,11 @@ def parse_contact(value) -> ContactSpec:
     return ContactSpec(**args)
 
 
-def check_self_contact(contact, kind: str, obstacle_names,
-                       constraints=(), tendons=()) -> None:
-    """Rod-rod contact is solved with joints and bodies, and in dynamic scenes without
-    sliding drives or displacement-controlled tendons; its result entry ``contacts.rods``
-    must not clash with an obstacle's name."""
+def check_self_contact(contact, obstacle_names) -> None:
+    """Rod-rod contact's result entry ``contacts.rods`` must not clash with an obstacle's
+    name."""
     if contact is None or not contact.self_contact:
         return
-    if kind == "dynamic":
-        for i, c in enumerate(constraints):
-            if getattr(c, "slides_along", None) is not None:
-                fail(f"constraints[{i}].slides_along", "a sliding drive and rod-rod "
-                     "contact in one dynamic scene are not supported yet")
-        for i, t in enumerate(tendons):
-            if getattr(t, "displacement", None) is not None:
-                fail(f"tendons[{i}].displacement", "a displacement-controlled tendon and "
-                     "rod-rod contact in one dynamic scene are not supported yet")
     if SELF_NAME in obstacle_names:
         fail("contact.self", f"an obstacle is named {SELF_NAME!r}, the name of the "
              "rod-rod entry of the result's contacts")

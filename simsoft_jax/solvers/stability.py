@@ -31,6 +31,7 @@ import jax
 import jax.numpy as jnp
 
 from ..couplings import coupling, mechanisms
+from ..couplings.tendon_lengths import tension_controlled
 from ..physics.assembly import residual_and_tangent
 from ..math.linalg import factorize, positive_definite, solve_factored
 from ..model.loads import full_loads
@@ -77,8 +78,11 @@ def negative_eigenvalues(model: Model, eq, tangent=None, positive=None) -> jax.A
     or friction (the Newton tangent with friction holds its stick terms, which this count
     leaves out); assembled here otherwise. ``positive``: whether that tangent's symmetric
     part is positive definite when already known (``Equilibrium.tangent_positive``, the
-    continuation's stability watch), so that only an indefinite one is counted. Pure:
+    continuation's stability watch), so that only an indefinite one is counted.
+    Displacement-controlled tendons count at their solved tensions (the statics solves
+    them outside the bordered system, :mod:`simsoft_jax.solvers.tendon_control`). Pure:
     jit- and vmap-able."""
+    model = tension_controlled(model)
     s = model.structure
     if tangent is not None and not (coupling.present(s) or model.obstacle_friction is not None):
         if positive is None:

@@ -19,36 +19,11 @@ import dataclasses
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
-from ..math.quadrature import gauss_rule
-from ..physics import element
+from ..couplings.tendon_lengths import displaced, length_changes
 from .newton import implicit
-from ..physics.terms import tendons
 
 MAX_ITERATIONS = 30
-
-
-def length_changes(model, R, p):
-    """Length change (m) of every tendon from the stress-free shape, (M,), at the nodal
-    frames R (N,3,3), p (N,3) (:func:`simsoft_jax.physics.terms.tendons.element_length` summed
-    over the elements each tendon passes)."""
-    s = model.structure
-    weights = gauss_rule(s.tendon_quadrature)[1]
-    a = jnp.asarray(s.element_nodes)
-    d = jax.vmap(element.relative_twist)(R[a], p[a], R[a + 1], p[a + 1])
-    lengths = jax.vmap(jax.vmap(tendons.element_length, in_axes=(None, None, 0, 0, None)),
-                       in_axes=(0, 0, 1, 1, None))
-    change = (lengths(d, model.length, model.tendon_offset, model.tendon_slope, weights)
-              - lengths(model.d0, model.length, model.tendon_offset, model.tendon_slope,
-                        weights))                                           # (E, M)
-    member = jnp.asarray(np.array(s.tendon_elements, float))               # (M, E)
-    return jnp.sum(member * change.T, axis=1)
-
-
-def displaced(structure) -> tuple:
-    """Indices of the displacement-controlled tendons (static)."""
-    return tuple(k for k, flag in enumerate(structure.tendon_displaced) if flag)
 
 
 def _mismatch(solve, model, settings, t):

@@ -96,8 +96,11 @@ def load_scale(model):
 
 
 def at_time(model, t) -> dict:
-    """The tensions times their time laws at ``t`` (s)."""
-    return {"tendon_tension": model.tendon_tension * model.tendon_law.scales(t)}
+    """The tensions and the prescribed length changes of displacement-controlled tendons
+    times their time laws at ``t`` (s)."""
+    scales = model.tendon_law.scales(t)
+    return {"tendon_tension": model.tendon_tension * scales,
+            "tendon_displacement": model.tendon_displacement * scales}
 
 
 TERM = Term("tendons", lambda model: bool(model.structure.tendon_names), force, per_element,

@@ -116,15 +116,12 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
 
     def held(r_z):
         """The constraints hold at the current iterate: the joints' gaps / char_length and
-        rotations, or the displacement-controlled tendons' length mismatches /
-        char_length, below the tolerance (with a reused matrix the corrections of ``w``
-        can shrink long before the constraints are met, so they are tested too)."""
+        rotations and the displacement-controlled tendons' length mismatches /
+        char_length (:func:`~simsoft_jax.couplings.coupling.violation`) below the tolerance
+        (with a reused matrix the corrections of ``w`` can shrink long before the
+        constraints are met, so they are tested too)."""
         violation = coupling.violation(model, r_z)
-        if violation is not None:
-            return violation[1] <= settings.tolerance
-        if r_z.size:
-            return jnp.max(jnp.abs(r_z)) <= settings.tolerance * model.char_length
-        return True
+        return True if violation is None else violation[1] <= settings.tolerance
 
     def body(c: _NewtonCarry) -> _NewtonCarry:
         r, r_z = fns.system_residual(c.w, c.mu)  # once; the branch builds only the matrix

@@ -20,7 +20,6 @@ import jax.numpy as jnp
 from ...couplings import coupling, rod_pairs
 from ...physics import inertia, stick_slip
 from ...math import lie
-from .. import tendon_control
 from ...physics.assembly import (apply_constraints, assemble_blocks, assemble_vector, element_blocks,
                         node_blocks, residual_vector)
 from ...couplings.drives import reduce, slide_maps
@@ -47,15 +46,17 @@ def element_inertia(model: Model) -> ElementInertia:
 
 def dynamic_residual(model: Model, inert: ElementInertia, R, p, v, vd, masked=True,
                      contact=True):
-    """Global dynamic residual (N,6) (spec S47), held dofs zeroed (unless ``masked=False``),
-    rod-rod contact included unless ``contact=False`` (:mod:`simsoft_jax.couplings.rod_pairs`; scenes
-    with it have no sliding drive, the only caller of ``masked=False``). ``model`` holds
+    """Global dynamic residual (N,6) (spec S47), held dofs zeroed (unless ``masked=False``:
+    for the sliding drives' reduction, which then adds no rod-rod contact), rod-rod contact
+    included unless ``contact=False`` (:mod:`simsoft_jax.couplings.rod_pairs`). ``model`` holds
     the loads at the time of evaluation (:func:`loads.loads_at`)."""
     s = model.structure
     r = residual_vector(model, 1.0, R, p, v, vd, inert)
+    if not masked:
+        return r
     if s.self_contact and contact:
         r = r + rod_pairs.residual(model, R, p)
-    return r * s.free_mask() if masked else r
+    return r * s.free_mask()
 
 
 def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p, slide=None,
@@ -64,8 +65,9 @@ def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p,
     from the assembler's blocks (:func:`simsoft_jax.physics.assembly.element_blocks`,
     :func:`~simsoft_jax.physics.assembly.node_blocks`). ``slide = (C, B, mask)`` (see
     :func:`drives.slide_maps`) reduces sliding drive nodes to their slide unknown before the
-    held dofs are eliminated. ``tangent``: the element-block path. Rod-rod contact is not
-    in it: :func:`step_functions` borders it on (:func:`simsoft_jax.couplings.rod_pairs.system`)."""
+    held dofs are eliminated. ``tangent``: the element-block path. The couplings are not
+    in it: :func:`step_functions` borders them on
+    (:func:`simsoft_jax.couplings.coupling.couple`)."""
     s = model.structure
     n = s.n_nodes
     a = jnp.asarray(s.element_nodes)
@@ -90,16 +92,15 @@ def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p,
 
 class StepFunctions(NamedTuple):
     """``F(w)`` pieces of one step of size h from a state (see :func:`step_functions`):
-    new_state(w) -> State; residual(w) (N,6), held dofs zeroed; newton_residual(w): the
-    residual of residual_and_matrix (sliding drives reduced), without the matrix;
-    residual_and_matrix(w) -> (residual, blocks); t1: the time at the end of the step.
-    With multipliers ``mu`` (M,) (:func:`border_sizes`): the joint multipliers
-    (:mod:`simsoft_jax.couplings.mechanisms`), or the tensions of displacement-controlled tendons
-    (the multipliers of their length constraints, :mod:`simsoft_jax.solvers.tendon_control`), or
-    none: system_residual(w, mu) -> (r (N,6), r_z (m,)), the Newton residual with the
-    joints' forces and constraints (or the tendons' forces and length mismatches, m) at
-    ``t1``; system(w, mu) -> the bordered iteration matrix and residual
-    (:class:`~simsoft_jax.couplings.mechanisms.Coupled`, empty couplings without either)."""
+    new_state(w) -> State; residual(w) (N,6), held dofs zeroed; newton_residual(w, mu):
+    the rods' residual of residual_and_matrix (sliding drives reduced, no couplings),
+    without the matrix; residual_and_matrix(w, mu) -> (residual, blocks); t1: the time at
+    the end of the step. With the couplings' multipliers ``mu`` (M,) (:func:`border_sizes`:
+    joint multipliers, tendon tensions): system_residual(w, mu) -> (r (N,6), r_z (m,)),
+    the Newton residual with the couplings' forces and own residuals at ``t1``;
+    system(w, mu) -> the bordered iteration matrix and residual
+    (:class:`~simsoft_jax.couplings.mechanisms.Coupled`; an empty border without couplings),
+    both from :mod:`simsoft_jax.couplings.coupling`."""
     new_state: object
     residual: object
     newton_residual: object
@@ -111,11 +112,8 @@ class StepFunctions(NamedTuple):
 
 def border_sizes(structure) -> tuple[int, int]:
     """``(m, M)``: the unknowns beside the rods' chains in a dynamic step and how many of
-    them are multipliers: those of the couplings (:func:`simsoft_jax.couplings.coupling.border_sizes`:
-    joints or rod-rod contact), or one tension per displacement-controlled tendon (the
-    scene refuses the tendons with a coupling in one dynamic scene)."""
-    k = len(tendon_control.displaced(structure))
-    return (k, k) if k else coupling.border_sizes(structure)
+    them are multipliers (:func:`simsoft_jax.couplings.coupling.border_sizes`)."""
+    return coupling.border_sizes(structure)
 
 
 def step_functions(model, inert, rho_inf, state: State, h,
@@ -126,70 +124,51 @@ def step_functions(model, inert, rho_inf, state: State, h,
     t1 = state.t + h
     loaded = stick_slip.anchored(loads_at(model, t1), state.anchor, t1)
     sliding = bool(model.structure.slide_drives)
+    coupled = coupling.present(model.structure)
 
     def new_state(w):
         a1, v1, vd1 = fields(rho_inf, state, w, h)
         R1, p1 = jax.vmap(lie.compose_exp)(state.R, state.p, w)
         return State(R1, p1, v1, vd1, a1, t1, stick_slip.updated(loaded, R1, p1, t1))
 
-    def residual(w, contact=True):
+    def residual(w):
         s1 = new_state(w)
-        return dynamic_residual(loaded, inert, s1.R, s1.p, s1.v, s1.vd, contact=contact)
+        return dynamic_residual(loaded, inert, s1.R, s1.p, s1.v, s1.vd)
 
-    def newton_residual(w, contact=True):
-        if not sliding:
-            return residual(w, contact)
+    def slide(w):
+        """The sliding drives' maps at ``w`` (:func:`slide_maps`), None without them."""
+        return slide_maps(model, state.R, w) if sliding else None
+
+    def newton_residual(w, mu):
         s1 = new_state(w)
-        C, _, mask = slide_maps(model, state.R, w)
-        r = dynamic_residual(loaded, inert, s1.R, s1.p, s1.v, s1.vd, masked=False,
-                             contact=contact)
+        pulled = coupling.with_multipliers(loaded, mu)
+        if not sliding:
+            return dynamic_residual(pulled, inert, s1.R, s1.p, s1.v, s1.vd, contact=False)
+        C, _, mask = slide(w)
+        r = dynamic_residual(pulled, inert, s1.R, s1.p, s1.v, s1.vd, masked=False)
         return jnp.einsum("nij,nj->ni", C, r) * mask
 
-    def residual_and_matrix(w):
+    def residual_and_matrix(w, mu):
         s1 = new_state(w)
-        slide = slide_maps(model, state.R, w) if sliding else None
-        return residual_and_iteration_matrix(loaded, inert, s1.R, s1.p, s1.v, s1.vd, w,
-                                             beta_p, gamma_p, slide, tangent)
-
-    displaced = jnp.asarray(tendon_control.displaced(model.structure), dtype=int)
-
-    def pulled(mu):
-        """``loaded`` with the tensions ``mu`` of the displacement-controlled tendons."""
-        return loaded.replace(tendon_tension=loaded.tendon_tension.at[displaced].set(mu))
-
-    def length_mismatch(w):
-        """Length changes minus the prescribed ones at ``t1`` (K,), m."""
-        s1 = new_state(w)
-        target = model.tendon_displacement[displaced] * model.tendon_law.scales(t1)[displaced]
-        return tendon_control.length_changes(model, s1.R, s1.p)[displaced] - target
+        return residual_and_iteration_matrix(coupling.with_multipliers(loaded, mu), inert,
+                                             s1.R, s1.p, s1.v, s1.vd, w, beta_p, gamma_p,
+                                             slide(w), tangent)
 
     def system_residual(w, mu):
-        if displaced.size:
-            s1 = new_state(w)
-            return (dynamic_residual(pulled(mu), inert, s1.R, s1.p, s1.v, s1.vd),
-                    length_mismatch(w))
-        r = newton_residual(w, contact=False)
-        if not coupling.present(model.structure):
+        r = newton_residual(w, mu)
+        if not coupled:
             return r, mu
         s1 = new_state(w)
-        return coupling.coupled_residual(loaded, s1.R, s1.p, mu, r)
+        return coupling.coupled_residual(coupling.with_multipliers(loaded, mu), s1.R, s1.p,
+                                         mu, r, slide(w))
 
     def system(w, mu):
-        if displaced.size:   # the border: tendon forces per unit tension, length gradients
-            s1 = new_state(w)
-            r, blocks = residual_and_iteration_matrix(pulled(mu), inert, s1.R, s1.p, s1.v,
-                                                      s1.vd, w, beta_p, gamma_p, None, tangent)
-            B = jax.jacfwd(lambda t: dynamic_residual(pulled(t), inert, s1.R, s1.p, s1.v,
-                                                      s1.vd))(mu)
-            C = jax.jacrev(length_mismatch)(w) * model.structure.free_mask()
-            return coupling.Coupled(r, blocks, B, C, jnp.zeros((mu.size,) * 2, r.dtype),
-                                      length_mismatch(w))
-        r, blocks = residual_and_matrix(w)
-        if not coupling.present(model.structure):
+        r, blocks = residual_and_matrix(w, mu)
+        if not coupled:
             return coupling.couple(loaded, None, None, mu, r, blocks)
         s1 = new_state(w)
-        return coupling.couple(loaded, s1.R, s1.p, mu, r, blocks,
-                               jax.vmap(lie.tangent_se3)(w))
+        return coupling.couple(coupling.with_multipliers(loaded, mu), s1.R, s1.p, mu, r,
+                               blocks, jax.vmap(lie.tangent_se3)(w), slide(w))
 
     return StepFunctions(new_state, residual, newton_residual, residual_and_matrix,
                          system_residual, system, t1)

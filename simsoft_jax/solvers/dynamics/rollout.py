@@ -49,7 +49,7 @@ class Trajectory(NamedTuple):
     residual: weighted residual norm (N) of the last Newton iterate of the failed step
     (nan if none). After a failure the state is frozen: the saved states after
     ``failed_at`` repeat the last good state (the host driver :func:`rollout` cuts them).
-    multipliers (T,M): at the saved times, the joint multipliers or the tensions (N) of
+    multipliers (T,M): at the saved times, the joint multipliers, then the tensions (N) of
     displacement-controlled tendons (:func:`~.residual.border_sizes`; None without
     either); the start's row is 0 (not solved: the start accelerations take the tendons
     slack). control_memory: the controller's memory after the last step of a closed-loop

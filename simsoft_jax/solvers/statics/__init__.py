@@ -25,6 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import compile_cache, tendon_control
+from ...couplings.tendon_lengths import tension_controlled
 from ...couplings import coupling, mechanisms
 from ...math import lie
 from ...math.xla import jit, traced
@@ -270,6 +271,8 @@ def equilibrium(model: Model, settings: StaticSettings, continuation=None,
     model = full_loads(model)
 
     def solve(m, st):
+        # the tensions are the Model's: solved outside (tendon_control), not bordered
+        m = tension_controlled(m)
         eq = (continuation or _continuation)(jax.lax.stop_gradient(m),
                                              jax.lax.stop_gradient(st))
         # None without tendons (a zero-size output would trouble batched maps)
