@@ -80,7 +80,8 @@ def scene(features, welded: bool, kind: str) -> dict:
     if "friction" in features:
         d["obstacles"] = [{"name": "ball", "kind": "sphere", "radius": SPHERE,
                            "center": [L, 0.0, touching / 2 - SPHERE], "friction": 0.3}]
-        d.setdefault("contact", {}).update({"stiffness": 2e4, "slip_velocity": 0.05})
+        d.setdefault("contact", {}).update({"stiffness": 2e4, "slip_velocity": 0.05,
+                                            "slip_displacement": 1e-4})
     if "mass" in features:
         d["masses"] = [{"rod": tip, "node": -1, "mass": 0.03, "offset": [0.0, 0.01, 0.0]}]
     tendons = []
@@ -132,7 +133,7 @@ def only(m, pair):
     tension[names.index("t")] *= "tendon" in pair
     offset, slope = np.array(m.tendon_offset), np.array(m.tendon_slope)
     displacement = np.array(m.tendon_displacement)
-    if "displaced_tendon" not in pair:
+    if "displaced_tendon" not in pair and "d" in names:
         k = names.index("d")
         offset[k], slope[k], displacement[k] = 0.0, 0.0, 0.0
     obstacles = np.array(m.obstacles)
