@@ -44,8 +44,8 @@ def count(structure) -> int:
 def tension_controlled(model):
     """``model`` with every tendon tension-controlled (its structure's displacement flags
     cleared): the tendons' tensions are then the Model's ``tendon_tension`` and no
-    coupling borders the chains for them (for a solve that finds the tensions outside,
-    :mod:`simsoft_jax.solvers.tendon_control`)."""
+    coupling borders the chains for them (the stability count at the solved tensions,
+    :func:`simsoft_jax.solvers.stability.negative_eigenvalues`)."""
     s = model.structure
     if not any(s.tendon_displaced):
         return model
