@@ -15,7 +15,8 @@ chains the K tensions border the Newton system ``[[K, B], [C, D]]`` with
   D (K,K)   = 0, and the residual r_z = ``Delta l(q) - delta`` (K,) (:func:`mismatch`),
 
 where ``delta`` is the prescribed length change at the time of the step (its time law,
-:func:`simsoft_jax.physics.terms.tendons.at_time`). The scene is in m and N.
+:func:`simsoft_jax.physics.terms.tendons.at_time`), in statics at the load level of the
+continuation (:func:`simsoft_jax.solvers.statics.newton.at_level`). The scene is in m and N.
 """
 from __future__ import annotations
 
