@@ -16,7 +16,7 @@ import pytest
 import jax
 import jax.numpy as jnp
 import simsoft_jax as sj
-from simsoft_jax.solvers import tendon_control
+from simsoft_jax.couplings import tendon_lengths
 
 EA, GA, GJ, EI = 2e3, 1e3, 0.4, 0.5
 STIFFNESS = {"EA": EA, "GAy": GA, "GAz": GA, "GJ": GJ, "EIy": EI, "EIz": EI}
@@ -49,7 +49,7 @@ def test_length_follows_its_law_and_the_tension_settles_at_the_closed_form(pulle
     x = np.clip(t / RAMP, 0.0, 1.0)
     target = DELTA * (3 * x**2 - 2 * x**3)
     model = pulled.model
-    change = jax.vmap(lambda R, p: tendon_control.length_changes(model, R, p))(
+    change = jax.vmap(lambda R, p: tendon_lengths.length_changes(model, R, p))(
         jnp.asarray(pulled.raw.R), jnp.asarray(pulled.raw.p))[:, 0]
     assert np.abs(np.asarray(change) - target).max() < 1e-10 * L
     tension = pulled.tendon_tension("t")

@@ -19,7 +19,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import simsoft_jax as sj
-from simsoft_jax.solvers import tendon_control
+from simsoft_jax.couplings import tendon_lengths
 from simsoft_jax.model.model import build_model
 
 EA, GA, GJ, EI = 2e3, 1e3, 0.4, 0.5
@@ -137,7 +137,7 @@ def test_tendon_across_a_weld_bends_each_rod_into_its_arc(y_structure, alpha_deg
         np.testing.assert_allclose(p[[0, 1, 2, 3, first + 1, first + 2]],
                                    arc(LT + LB, 5, k, eps), rtol=0, atol=1e-10 * LT)
     # one tension along the tendon: its length is the sum of its parts in both rods
-    change = tendon_control.length_changes(model, eq.R, eq.p)
+    change = tendon_lengths.length_changes(model, eq.R, eq.p)
     assert float(change[0]) == pytest.approx(length_change((LT, R_OFF), (LB, r_up)),
                                              rel=1e-10)
 

@@ -15,7 +15,8 @@ chains the K tensions border the Newton system ``[[K, B], [C, D]]`` with
   D (K,K)   = 0, and the residual r_z = ``Delta l(q) - delta`` (K,) (:func:`mismatch`),
 
 where ``delta`` is the prescribed length change at the time of the step (its time law,
-:func:`simsoft_jax.physics.terms.tendons.at_time`). The scene is in m and N.
+:func:`simsoft_jax.physics.terms.tendons.at_time`), in statics at the load level of the
+continuation (:func:`simsoft_jax.solvers.statics.newton.at_level`). The scene is in m and N.
 """
 from __future__ import annotations
 
@@ -44,8 +45,8 @@ def count(structure) -> int:
 def tension_controlled(model):
     """``model`` with every tendon tension-controlled (its structure's displacement flags
     cleared): the tendons' tensions are then the Model's ``tendon_tension`` and no
-    coupling borders the chains for them (for a solve that finds the tensions outside,
-    :mod:`simsoft_jax.solvers.tendon_control`)."""
+    coupling borders the chains for them (the stability count at the solved tensions,
+    :func:`simsoft_jax.solvers.stability.negative_eigenvalues`)."""
     s = model.structure
     if not any(s.tendon_displaced):
         return model

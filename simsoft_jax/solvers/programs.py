@@ -23,7 +23,7 @@ from ..math.xla import jit
 from ..model.built_models import Lru
 from .compile_cache import compile_stored
 from .dynamics.driver import compile_key
-from ..couplings.mechanisms import multiplier_count
+from ..couplings.coupling import border_sizes
 from ..model.model import Model
 from .packing import Layout, pack
 from .stability import negative_eigenvalues
@@ -61,12 +61,13 @@ def static_layout(model) -> tuple:
 
     structure = model.structure
     n, count = structure.n_nodes, like((), np.int64)
+    multipliers = border_sizes(structure)[1]
     frames = (like((n, 3, 3)), like((n, 3)))
     eq = Equilibrium(
         None, None, converged=like((), np.bool_), iterations=count, residual_norm=like(()),
         load_level=like(()), load_steps=count, step_failures=count, status=count,
         cause=count,
-        multipliers=like((multiplier_count(structure),)) if structure.joints else None,
+        multipliers=like((multipliers,)) if multipliers else None,
         tendon_tension=(like((len(structure.tendon_names),))
                         if structure.tendon_names else None),
         previous=frames if model.obstacle_friction is not None else None)

@@ -79,10 +79,10 @@ def negative_eigenvalues(model: Model, eq, tangent=None, positive=None) -> jax.A
     leaves out); assembled here otherwise. ``positive``: whether that tangent's symmetric
     part is positive definite when already known (``Equilibrium.tangent_positive``, the
     continuation's stability watch), so that only an indefinite one is counted.
-    Displacement-controlled tendons count at their solved tensions (the statics solves
-    them outside the bordered system, :mod:`simsoft_jax.solvers.tendon_control`). Pure:
-    jit- and vmap-able."""
-    model = tension_controlled(model)
+    Displacement-controlled tendons count as tension-controlled ones at their solved
+    tensions (the multipliers ``eq.multipliers``). Pure: jit- and vmap-able."""
+    y = eq.multipliers if eq.multipliers is not None else jnp.zeros(0)
+    model = tension_controlled(coupling.with_multipliers(model, y))
     s = model.structure
     if tangent is not None and not (coupling.present(s) or model.obstacle_friction is not None):
         if positive is None:
@@ -93,7 +93,6 @@ def negative_eigenvalues(model: Model, eq, tangent=None, positive=None) -> jax.A
     r, blocks = residual_and_tangent(loaded, eq.R, eq.p, 1.0)
     if not coupling.present(s):
         return count_negative_pivots(*symmetric_blocks(blocks))
-    y = eq.multipliers if eq.multipliers is not None else jnp.zeros(0)
     system = coupling.couple(loaded, eq.R, eq.p, y, r, blocks)
     m_joints = mechanisms.coupling_count(s) if s.joints else 0
     return bordered_count(system, m_joints) - mechanisms.multiplier_count(s)

@@ -24,9 +24,8 @@ import jax.numpy as jnp
 
 import numpy as np
 
-from .. import compile_cache, tendon_control
-from ...couplings.tendon_lengths import tension_controlled
-from ...couplings import coupling, mechanisms
+from .. import compile_cache
+from ...couplings import coupling
 from ...math import lie
 from ...math.xla import jit, traced
 from ...physics.assembly import residual, residual_and_tangent
@@ -38,8 +37,8 @@ from ..status import Status, raise_if_failed
 # the package's names, re-exported (batched sweeps, the dynamics, results import them here)
 from . import branch
 from .newton import (NewtonState, newton_solve, no_tangent, update_frames,  # noqa: F401
-                     level_tolerance, load_scale, max_load_step, newton_outcome, newton_pass,
-                     newton_start)
+                     at_level, level_tolerance, load_scale, max_load_step, newton_outcome,
+                     newton_pass, newton_start)
 from .settings import Equilibrium, StaticSettings, as_traced, settings_from_scene  # noqa: F401
 
 
@@ -57,8 +56,8 @@ class ContinuationState(NamedTuple):
     """Carry of :func:`_continuation`: the last accepted frames (R, p) at load level lam,
     the ones before (R_prev, p_prev at lam_prev) for the secant predictor, the next load
     increment dlam, counters, the residual at the last accepted level, and the status of
-    the last failed Newton solve (cause); y, y_prev: the joint multipliers at lam and
-    lam_prev; tangent: the chains' tangent blocks at (R, p) (zero before a level is
+    the last failed Newton solve (cause); y, y_prev: the multipliers (joint multipliers,
+    displacement-controlled tendons' tensions) at lam and lam_prev; tangent: the chains' tangent blocks at (R, p) (zero before a level is
     accepted); stable: the tangent at the last accepted level is positive definite (False
     before one is accepted: not known); kick: the branch-switching move (N,6) added to
     the next trial's prediction (zero but right after a switch); kicked: a switch was
@@ -86,7 +85,7 @@ class ContinuationState(NamedTuple):
 
 def trial_level(c: ContinuationState):
     """The next load level of the continuation, the secant prediction of its frames
-    (moved by ``c.kick`` after a branch switch) and joint multipliers, and the last load
+    (moved by ``c.kick`` after a branch switch) and multipliers, and the last load
     step's increment ``d`` (N,6) (body-frame twists ``log(H_prev^-1 H)``, for
     :func:`after_newton`): ``(lam_try, R, p, y, d)``."""
     lam_try = c.lam + c.dlam
@@ -163,7 +162,7 @@ def continuing(settings: StaticSettings, c: ContinuationState):
 def continuation_start(model: Model, settings: StaticSettings) -> ContinuationState:
     """The continuation carry at load level 0 (the start frames of ``model``)."""
     zero = jnp.array(0)
-    y = jnp.zeros(mechanisms.multiplier_count(model.structure), model.p0.dtype)
+    y = jnp.zeros(coupling.border_sizes(model.structure)[1], model.p0.dtype)
     return ContinuationState(
         R=model.R0, p=model.p0, R_prev=model.R0, p_prev=model.p0, y=y, y_prev=y,
         lam=jnp.array(0.0),
@@ -204,7 +203,8 @@ def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
 class EquilibriumProblem:
     """The static equilibrium as an implicit problem for :func:`simsoft_jax.solvers.newton.implicit`
     (spec section 5): ``params = (model, converged, previous)``, ``solution = (R, p, y)``
-    (frames and joint multipliers), increments ``(dx (N,6), dy (M,))`` on the right of the
+    (frames and multipliers: joint multipliers, displacement-controlled tendons' tensions,
+    :func:`.newton.at_level`), increments ``(dx (N,6), dy (M,))`` on the right of the
     frames. Held dofs follow the start frames ``model.R0, model.p0`` (a clamp holds its
     node there). With quasi-static friction (``previous``: the frames of the level before
     the last, else None) the derivative is that of the last level's equilibrium with
@@ -231,14 +231,16 @@ class EquilibriumProblem:
         model, _, previous = params
         R, p, y = solution
         Rx, px = update_frames(R, p, delta[0])
-        return coupling.coupled_residual(model, Rx, px, y + delta[1],
-                                         residual(model, Rx, px, 1.0, previous))
+        level = at_level(model, y + delta[1], 1.0)
+        return coupling.coupled_residual(level, Rx, px, y + delta[1],
+                                         residual(level, Rx, px, 1.0, previous))
 
     def linear_solve(self, params, solution, rhs):
         model, _, previous = params
         R, p, y = solution
-        system = coupling.couple(model, R, p, y,
-                                 *residual_and_tangent(model, R, p, 1.0, self.tangent,
+        level = at_level(model, y, 1.0)
+        system = coupling.couple(level, R, p, y,
+                                 *residual_and_tangent(level, R, p, 1.0, self.tangent,
                                                        previous))
         x, z = implicit_solve_coupled(system.blocks, system.B, system.C, system.D, *rhs,
                                       model.structure.identity_nodes())
@@ -262,55 +264,45 @@ class EquilibriumProblem:
 def equilibrium(model: Model, settings: StaticSettings, continuation=None,
                 keep_tangent: bool = False) -> Equilibrium:
     """The continuation (default :func:`_continuation`; the batched sweeps pass their
-    flattened one) under the full loads, with the implicit derivative attached. With
-    displacement-controlled tendons, their tensions are solved first
-    (:func:`~simsoft_jax.solvers.tendon_control.solve_tensions`). ``keep_tangent``: return the
-    last Newton pass's tangent blocks as ``Equilibrium.tangent`` (not differentiated;
+    flattened one) under the full loads, with the implicit derivative attached
+    (:func:`with_derivative`). Displacement-controlled tendons border its Newton system
+    (their tensions are multipliers, :func:`.newton.at_level`). ``keep_tangent``: return
+    the last Newton pass's tangent blocks as ``Equilibrium.tangent`` (not differentiated;
     for the stability count) and, where the continuation watched stability, whether
     they are positive definite (``Equilibrium.tangent_positive``), else None."""
     model = full_loads(model)
+    eq = (continuation or _continuation)(jax.lax.stop_gradient(model),
+                                         jax.lax.stop_gradient(settings))
+    watched = keep_tangent and branch.watched(model)
+    eq = eq._replace(previous=eq.previous if model.obstacle_friction is not None else None,
+                     tangent=eq.tangent if keep_tangent else None,
+                     tangent_positive=eq.tangent_positive if watched else None)
+    return with_derivative(eq, model, settings.tangent)
 
-    def solve(m, st):
-        # the tensions are the Model's: solved outside (tendon_control), not bordered
-        m = tension_controlled(m)
-        eq = (continuation or _continuation)(jax.lax.stop_gradient(m),
-                                             jax.lax.stop_gradient(st))
-        # None without tendons (a zero-size output would trouble batched maps)
-        tension = m.tendon_tension if m.structure.tendon_names else None
-        watched = keep_tangent and branch.watched(m)
-        eq = eq._replace(previous=eq.previous if m.obstacle_friction is not None else None,
-                         tangent=eq.tangent if keep_tangent else None,
-                         tangent_positive=eq.tangent_positive if watched else None)
-        y = jnp.zeros(0) if eq.multipliers is None else eq.multipliers   # None: no joints
-        R, p, y = implicit(EquilibriumProblem(st.tangent), (m, eq.converged, eq.previous),
-                           (eq.R, eq.p, y))
-        return eq._replace(R=R, p=p, multipliers=None if eq.multipliers is None else y,
-                           tendon_tension=tension)
 
-    if not any(model.structure.tendon_displaced):
-        return solve(model, settings)
-    model, ok = tendon_control.solve_tensions(
-        solve, model, settings, settings.step_tolerance * model.char_length)
-    eq = solve(model, settings)
-    failed = eq.converged & ~ok
-    return eq._replace(converged=eq.converged & ok,
-                       status=jnp.where(failed, Status.MAX_ITERATIONS, eq.status))
+def with_derivative(eq: Equilibrium, model: Model, tangent: str) -> Equilibrium:
+    """``eq``, solved for ``model`` (under its full loads), carrying the implicit
+    derivative in ``model`` (:class:`EquilibriumProblem`, ``tangent`` its tangent path),
+    with the tendons' tensions: as given, the displacement-controlled ones from the
+    multipliers (None without tendons, as a zero-size output would trouble batched
+    maps)."""
+    y = jnp.zeros(0) if eq.multipliers is None else eq.multipliers   # None: no multipliers
+    R, p, y = implicit(EquilibriumProblem(tangent), (model, eq.converged, eq.previous),
+                       (eq.R, eq.p, y))
+    tension = (coupling.with_multipliers(model, y).tendon_tension
+               if model.structure.tendon_names else None)
+    return eq._replace(R=R, p=p, multipliers=None if eq.multipliers is None else y,
+                       tendon_tension=tension)
 
 
 @jit(static_argnames="tangent")
 def differentiable(eq: Equilibrium, model: Model, tangent: str) -> Equilibrium:
-    """``eq``, solved for ``model`` (without displacement-controlled tendons), with the
-    implicit derivative in ``model`` attached outside the compiled solve
-    (:func:`simsoft_jax.solvers.newton.implicit`): ``jax.grad`` or ``jax.jvp`` of a function
-    calling :func:`solve_static` outside ``jit`` runs the solve's compiled program as it is
-    and compiles only the small tangent program (``tangent``: its tangent path)."""
-    model = full_loads(model)
-    y = jnp.zeros(0) if eq.multipliers is None else eq.multipliers
-    R, p, y = implicit(EquilibriumProblem(tangent), (model, eq.converged, eq.previous),
-                       (eq.R, eq.p, y))
-    return eq._replace(R=R, p=p, multipliers=None if eq.multipliers is None else y,
-                       tendon_tension=model.tendon_tension if model.structure.tendon_names
-                       else None)
+    """``eq``, solved for ``model``, with the implicit derivative in ``model`` attached
+    outside the compiled solve (:func:`with_derivative`): ``jax.grad`` or ``jax.jvp`` of
+    a function calling :func:`solve_static` outside ``jit`` runs the solve's compiled
+    program as it is and compiles only the small tangent program (``tangent``: its
+    tangent path)."""
+    return with_derivative(eq, full_loads(model), tangent)
 
 
 def _compiled(model: Model, settings: StaticSettings) -> Equilibrium:
@@ -351,8 +343,6 @@ def solve_static(model: Model, settings: StaticSettings = StaticSettings(),
     compile_cache.enable()
     if not traced(model, settings):
         eq = _compiled(model, settings)
-    elif any(model.structure.tendon_displaced):   # their tensions' derivative: in the program
-        eq = static_program(model, as_traced(settings))
     else:   # the program's answer, its derivative attached by a program of its own
         primal = jax.lax.stop_gradient(model)   # plain arrays under an eager grad or jvp
         eq = (static_program(primal, as_traced(settings)) if traced(primal, settings)

@@ -9,7 +9,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from ...couplings import coupling
+from ...couplings import coupling, tendon_lengths
 from ...math import lie
 from ...physics.assembly import residual_and_tangent
 from ...physics.inertia import line_density
@@ -18,7 +18,7 @@ from ...model.model import Model
 from ..newton import (RUNNING, capped, coupled_step, factorize, iterate, ladder, residual_norm,
                       step_norm, step_size, weighted_norm)
 from ..status import Status
-from ...physics.terms import registry
+from ...physics.terms import registry, tendons
 from .branch import symmetric_at_equilibrium
 from .settings import StaticSettings
 
@@ -57,6 +57,34 @@ def load_scale(model: Model):
     return jnp.sqrt(total + registry.load_scale_squared(model))
 
 
+def at_level(model: Model, y, lam) -> Model:
+    """The model of the bordered static system at load level ``lam`` (> 0) and multipliers
+    y (M,) (:func:`simsoft_jax.couplings.coupling.border_sizes`: joint multipliers, then the
+    displacement-controlled tendons' tensions t): those tendons' prescribed length changes
+    grow with the loads, ``lam delta``, and their tensions are the multipliers t
+    themselves. The tendon term scales its tensions by lam
+    (:func:`simsoft_jax.physics.terms.tendons.force`), so they are set as ``t / lam``: the
+    forces are ``t grad l`` and the border ``B = G^T`` of
+    :mod:`simsoft_jax.couplings.tendon_lengths` is their derivative in t. ``model``
+    unchanged without such tendons."""
+    if not tendon_lengths.count(model.structure):
+        return model
+    level = coupling.with_multipliers(model, y / lam)
+    return level.replace(tendon_displacement=lam * model.tendon_displacement)
+
+
+def tension_scale(model: Model, ref):
+    """The load scale ``ref`` (N) of :func:`load_scale` with the share of the
+    displacement-controlled tendons' tensions of ``model`` (:func:`at_level`: at the
+    multipliers of the current iterate, taken to the full loads): their forces are not
+    known before the solve. ``ref`` unchanged without such tendons."""
+    if not tendon_lengths.count(model.structure):
+        return ref
+    idx = jnp.asarray(tendon_lengths.displaced(model.structure), dtype=int)
+    only = jnp.zeros_like(model.tendon_tension).at[idx].set(model.tendon_tension[idx])
+    return jnp.sqrt(ref ** 2 + tendons.load_scale(model.replace(tendon_tension=only)))
+
+
 def update_frames(R, p, dx):
     return jax.vmap(lie.compose_exp)(R, p, dx)
 
@@ -67,7 +95,8 @@ class NewtonState(NamedTuple):
     step (size_base) and the residual at the base (res_base), the residual at the last
     evaluated trial (res), rejected trials in a row (backtracks), accepted Newton steps
     (iterations), and the status: -1 running, else a :class:`Status` code. y, base_y,
-    dy: the joint multipliers like R, p and dx (empty without joints). tangent: the
+    dy: the multipliers (joint multipliers, displacement-controlled tendons' tensions)
+    like R, p and dx (empty without them). tangent: the
     chains' tangent blocks evaluated at the last pass's trial (at (R, p) once done).
     positive: that tangent is positive definite, read from the pivots of its
     factorization when the pass converged and :func:`.branch.symmetric_at_equilibrium`
@@ -111,11 +140,21 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState
     """One pass of :func:`newton_solve` at load level ``lam`` (load scale ``ref``): residual,
     tangent and Newton step at the trial state, then accept or backtrack (see there);
     ``previous``: the frames (R, p) of the last converged level (the reference of the
-    quasi-static friction)."""
-    tol = jnp.where(lam < 1.0, level_tolerance(model, settings), settings.tolerance) * ref
-    r, tangent = residual_and_tangent(model, c.R, c.p, lam, settings.tangent, previous)
-    system = coupling.couple(model, c.R, c.p, c.y, r, tangent)
-    res = residual_norm(model, system, ref)
+    quasi-static friction). With displacement-controlled tendons the system is that of
+    :func:`at_level`, the load scale holds their tensions (:func:`tension_scale`) and a
+    converged pass also holds their lengths: the couplings' gaps / char_length
+    (:func:`simsoft_jax.couplings.coupling.violation`) below the relative tolerance (the
+    tensions, so the load scale, may be zero at the start)."""
+    relative = jnp.where(lam < 1.0, level_tolerance(model, settings), settings.tolerance)
+    level = at_level(model, c.y, lam)
+    ref = tension_scale(level, ref)
+    tol = relative * ref
+    r, tangent = residual_and_tangent(level, c.R, c.p, lam, settings.tangent, previous)
+    system = coupling.couple(level, c.R, c.p, c.y, r, tangent)
+    res = residual_norm(level, system, ref)
+    held = True
+    if tendon_lengths.count(model.structure):
+        held = coupling.violation(level, system.r_z)[1] <= relative
     factors = factorize(model, system)
     dx, dy = capped(settings.max_rotation_step,
                     *coupled_step(model, factors, system.r, system.r_z))
@@ -125,8 +164,8 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState
     accept = finite & ((size < settings.max_step_growth * c.size_base) | exhausted)
     # converged: residual below tolerance, or stagnating at the round-off floor (a stiff
     # axial term makes |r| ~ eps EA) well below the load scale
-    converged = accept & ((res <= tol) | ((res <= settings.stagnation_level * ref)
-                                          & (res >= 0.5 * c.res_base)))
+    converged = accept & held & ((res <= tol) | ((res <= settings.stagnation_level * ref)
+                                                  & (res >= 0.5 * c.res_base)))
     # the next Newton step is below step_tolerance: the state is that accurate, even
     # where round-off keeps the residual above tol (stiff axial terms, spec (S64))
     stalled = accept & (step_norm(model, dx) <= settings.step_tolerance)
@@ -164,7 +203,7 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState
 
 
 def newton_start(R, p, y) -> NewtonState:
-    """The Newton carry before the first pass, from the predicted frames (R, p) and joint
+    """The Newton carry before the first pass, from the predicted frames (R, p) and
     multipliers y."""
     inf, zero = jnp.array(jnp.inf), jnp.array(0)
     return NewtonState(R=R, p=p, base_R=R, base_p=p, dx=jnp.zeros(p.shape[:1] + (6,)),

@@ -110,10 +110,12 @@ class Equilibrium(NamedTuple):
     reached, 1 when converged), load_steps (accepted continuation steps), step_failures
     (halvings), status (:class:`~simsoft_jax.solvers.status.Status` code: how the solve ended),
     cause (the reason of the last failed Newton solve, ``NOT_RUN`` if none), multipliers
-    (M,): the joint multipliers (:mod:`~simsoft_jax.couplings.mechanisms`; None without joints),
+    (M,): the joint multipliers (:mod:`~simsoft_jax.couplings.mechanisms`) and the
+    displacement-controlled tendons' tensions (N) (the layout of
+    :func:`~simsoft_jax.couplings.coupling.border_sizes`; None without either),
     tendon_tension (M,) the tendons' tensions (N): as given, or solved for
-    displacement-controlled tendons (:mod:`simsoft_jax.solvers.tendon_control`); None when the
-    model has no tendons; previous: the frames (R, p) of the load level before the last
+    displacement-controlled tendons (multipliers of their length constraints,
+    :mod:`simsoft_jax.couplings.tendon_lengths`); None when the model has no tendons; previous: the frames (R, p) of the load level before the last
     one, the reference of the quasi-static friction there
     (:mod:`simsoft_jax.physics.terms.static_friction`); None without friction. tangent: the
     chains' tangent blocks ``(diag, upper, lower)`` at the equilibrium under the full
