@@ -62,7 +62,7 @@ and solved through the public API:
   A step that an impact on an obstacle makes too long is sub-stepped
   (:mod:`simsoft_jax.solvers.dynamics.contact_time`); with obstacles the sub-steps may be
   halved until they resolve the contact time ``pi sqrt(rhoA / k)`` (``max_halvings``:
-  ``ceil(log2(10 dt_max / t_c))``, at least 6; 9 on the capstan), so that the rope
+  ``ceil(log2(10 dt_max / t_c))``, at least 6; 10 on the capstan), so that the rope
   settling onto the penalty at the start (about 10 micrometres) is followed, after
   which resting contact takes whole steps.
 """
