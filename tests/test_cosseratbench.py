@@ -81,3 +81,13 @@ def test_pendulum_period_and_amplitude_at_10_elements():
     assert result.outcome == "completed"
     assert result.metrics["period_error"] < 5e-4
     assert abs(result.metrics["amplitude_change"]) < 1e-4
+
+
+def test_rod_contact_where_rods_can_touch_and_not_with_a_sliding_drive():
+    """Two crossing ropes get frictionless rod-rod contact; the twist's rods, held by
+    sliding clamps (which rod contact cannot share a dynamic scene with yet), get none."""
+    crossing = registry.load_experiment("crossing")
+    scene = scene_dict(crossing.build(**crossing.values()), 8, dt=1e-3)
+    assert scene["contact"] == {"self": True} and "obstacles" not in scene
+    twist = registry.load_experiment("twist")
+    assert "contact" not in scene_dict(twist.build(**twist.values()), 8, dt=1e-3)

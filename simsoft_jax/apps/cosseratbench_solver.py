@@ -49,7 +49,9 @@ and solved through the public API:
 * **Rods touching each other or themselves** (several rods, or ``Scenario.self_contact``):
   ``[contact] self = true``, frictionless (rod-rod friction is not modelled, so
   ``rod_friction`` is not declared and a rod's own ``friction`` acts only against
-  obstacles).
+  obstacles). Rod contact and a sliding drive (``slides_along``) cannot share a dynamic
+  scene here yet: a scenario with a sliding drive (the twist) runs without rod contact,
+  and the benchmark's overlap observation shows where rods pass through each other.
 * **Contact scenarios** (obstacles or rod contact) run as damped dynamics even when a
   static solve could stand for them: the stick-slip friction is a law of the dynamics,
   and a free rope lying on an obstacle has no isolated static equilibrium. Quasi-static
@@ -126,9 +128,12 @@ def _end_constraint(rod, name, end, node):
 
 
 def _rod_contact(scenario):
-    """Whether rods may touch each other or themselves (the benchmark's rods always
-    collide with each other; a rod with itself where ``self_contact`` says it may)."""
-    return len(scenario.rods) > 1 or scenario.self_contact
+    """Whether rod contact is modelled: where rods may touch each other or themselves
+    (the benchmark's rods always collide with each other; a rod with itself where
+    ``self_contact`` says it may), unless a drive slides (module docstring)."""
+    sliding = any(m is not None and m.slides_along is not None for rod in scenario.rods
+                  for m in (rod.start_motion, rod.end_motion))
+    return (len(scenario.rods) > 1 or scenario.self_contact) and not sliding
 
 
 def _has_contact(scenario):
