@@ -12,7 +12,12 @@ cosseratbench = pytest.importorskip("cosseratbench")
 from cosseratbench import registry  # noqa: E402
 
 from conftest import REPO_ROOT  # noqa: E402
-from simsoft_jax.apps.cosseratbench_solver import SimsoftJaxSolver  # noqa: E402
+import numpy as np  # noqa: E402
+
+from simsoft_jax.apps.cosseratbench_solver import SimsoftJaxSolver, scene_dict  # noqa: E402
+from simsoft_jax.model.model import build_model  # noqa: E402
+from simsoft_jax.physics.obstacles import signed_distance  # noqa: E402
+from simsoft_jax.scene.scene import Scene  # noqa: E402
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -27,9 +32,31 @@ def test_entry_point_names_the_adapter_and_it_is_a_solver():
     solver = getattr(importlib.import_module(module), name)()
     assert isinstance(solver, cosseratbench.Solver) and solver.name == "simsoft_jax"
     assert "cosseratbench" in " ".join(project["optional-dependencies"]["bench"])
-    # contact is not modelled, so the contact experiments are reported unsupported
-    capstan = cosseratbench.run(registry.load_experiment("capstan"), solver)
-    assert capstan.outcome == "unsupported"
+    assert {cosseratbench.Capability.CYLINDER_CONTACT, cosseratbench.Capability.PLANE_CONTACT,
+            cosseratbench.Capability.ROD_CONTACT} <= solver.capabilities
+
+
+@pytest.mark.parametrize("friction", [0.1, 0.6])
+def test_capstan_cylinder_is_mapped_exactly(friction):
+    """The built model's obstacle is the benchmark's cylinder: at points around it, its
+    signed distance equals the distance from the benchmark's axis (centre, unit axis) less
+    its radius; the Coulomb coefficient is the benchmark's, with stick-slip friction; the
+    rope's contact radius is its radius. No run."""
+    scenario = registry.load_experiment("capstan").build(overhang=0.8, friction=friction)
+    (cylinder,) = scenario.obstacles
+    scene = scene_dict(scenario, 20, dt=1e-3)
+    model = build_model(Scene.from_dict(scene))
+    assert model.structure.obstacle_kinds == ("cylinder",)
+    assert scene["contact"]["friction_law"] == "stick_slip" and not scene["contact"]["self"]
+    np.testing.assert_array_equal(np.asarray(model.obstacle_friction), [friction])
+    np.testing.assert_array_equal(np.asarray(model.contact_radius),
+                                  scenario.rods[0].radius)
+    points = np.random.default_rng(0).uniform(-0.2, 0.2, (50, 3))
+    centre, axis = np.asarray(cylinder.center), cylinder.unit_axis
+    rel = points - centre
+    expected = np.linalg.norm(rel - np.outer(rel @ axis, axis), axis=1) - cylinder.radius
+    got = [float(signed_distance("cylinder", model.obstacles[0], x)) for x in points]
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-15)
 
 
 def test_cantilever_tip_deflection_within_1e_3_at_20_elements():
@@ -54,3 +81,13 @@ def test_pendulum_period_and_amplitude_at_10_elements():
     assert result.outcome == "completed"
     assert result.metrics["period_error"] < 5e-4
     assert abs(result.metrics["amplitude_change"]) < 1e-4
+
+
+def test_rod_contact_where_rods_can_touch_and_not_with_a_sliding_drive():
+    """Two crossing ropes get frictionless rod-rod contact; the twist's rods, held by
+    sliding clamps (which rod contact cannot share a dynamic scene with yet), get none."""
+    crossing = registry.load_experiment("crossing")
+    scene = scene_dict(crossing.build(**crossing.values()), 8, dt=1e-3)
+    assert scene["contact"] == {"self": True} and "obstacles" not in scene
+    twist = registry.load_experiment("twist")
+    assert "contact" not in scene_dict(twist.build(**twist.values()), 8, dt=1e-3)

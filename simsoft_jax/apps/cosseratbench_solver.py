@@ -32,11 +32,41 @@ and solved through the public API:
   8e-5 there) and ``N = 40`` in quasi-static ones. The scheme is implicit, so the step is
   set by accuracy, not by a stability limit.
 
-Contact (rods with each other, with themselves, with cylinders or planes) is not modelled:
-those capabilities are not declared, so cosseratbench reports such experiments as
-unsupported; a scenario with obstacles raises ``NotImplementedError``. Self-contact
-requested by a scenario without obstacles (``Scenario.self_contact``) is ignored: the
-benchmark's overlap observation shows where rods pass through themselves.
+* **Obstacles.** A ``Cylinder`` -> an obstacle ``cylinder`` (the rod outside it) with the
+  same axis point (``center``), unit axis and radius; a ``Plane`` -> an obstacle ``plane``
+  with the same point and unit normal. The cylinder here is infinite: the benchmark's
+  ``length`` is not modelled, and a scenario with a rod starting beyond a cylinder's end
+  within its reach raises ``NotImplementedError``. Each rod's contact radius is its
+  radius (the ``circle`` section's default); the penalty stiffness is the default
+  ``1000 EI / h^4`` (:mod:`simsoft_jax.physics.terms.contact`).
+* **Friction** against an obstacle: Coulomb with the larger of the obstacle's and the
+  rod's coefficients (the benchmark's rule), as the stick-slip law
+  (``[contact] friction_law = "stick_slip"``: a tangential spring of the penalty's
+  stiffness per contact point, exact sticking below ``0.95 mu f_n``, saturating smoothly
+  to ``mu f_n`` while sliding; static and sliding coefficients equal). Rods whose
+  coefficients differ against one obstacle raise ``NotImplementedError`` (one
+  coefficient per obstacle here).
+* **Rods touching each other or themselves** (several rods, or ``Scenario.self_contact``):
+  ``[contact] self = true``, frictionless (rod-rod friction is not modelled, so
+  ``rod_friction`` is not declared and a rod's own ``friction`` acts only against
+  obstacles). Rod contact and a sliding drive (``slides_along``) cannot share a dynamic
+  scene here yet: a scenario with a sliding drive (the twist) runs without rod contact,
+  and the benchmark's overlap observation shows where rods pass through each other.
+* **Contact scenarios** (obstacles or rod contact) run as damped dynamics even when a
+  static solve could stand for them: the stick-slip friction is a law of the dynamics,
+  and a free rope lying on an obstacle has no isolated static equilibrium. Quasi-static
+  ones take ``rho_inf = 0`` (generalized-alpha's full damping of the unresolved high
+  frequencies) besides the mass damping: a rod resting on the stiff penalty is a spring
+  of angular frequency ``omega_c = sqrt(k / rhoA)`` (5.6e3 rad/s on the capstan) far
+  above ``1/dt``, which ``rho_inf = 0.9`` leaves ringing (normal speeds of 0.1-0.3 m/s
+  on the capstan, enough to shake the rope loose), while ``rho_inf = 0`` removes it in
+  a step and changes the slow modes (``omega dt`` about 0.1) by ``O((omega dt)^2)``.
+  A step that an impact on an obstacle makes too long is sub-stepped
+  (:mod:`simsoft_jax.solvers.dynamics.contact_time`); with obstacles the sub-steps may be
+  halved until they resolve the contact time ``pi sqrt(rhoA / k)`` (``max_halvings``:
+  ``ceil(log2(10 dt_max / t_c))``, at least 6; 10 on the capstan), so that the rope
+  settling onto the penalty at the start (about 10 micrometres) is followed, after
+  which resting contact takes whole steps.
 """
 from __future__ import annotations
 
@@ -48,6 +78,7 @@ import numpy as np
 
 from .. import __version__
 from ..solvers.dynamics import DynamicSettings, initial_state, simulate
+from ..solvers.dynamics.contact_time import RESOLUTION, contact_time
 from ..math.lie import log_so3
 from ..model.model import build_model
 from ..scene.scene import Scene
@@ -55,11 +86,14 @@ from ..solvers.statics import solve_static
 
 try:  # the extra: without it, importing this module fails with the missing package named
     from cosseratbench import Capability, Diverged, End, EndCondition, Trajectory
+    from cosseratbench.scenario import Cylinder, Plane
 except ImportError as error:  # pragma: no cover - exercised only without the extra
     raise ImportError("simsoft_jax.apps.cosseratbench_solver needs the 'bench' extra: "
                       "pip install 'simsoft_jax[bench]'", name=error.name) from error
 
 RHO_INF = 0.9
+RHO_INF_CONTACT = 0.0  # quasi-static scenarios with contact (module docstring)
+MAX_HALVINGS = DynamicSettings.__dataclass_fields__["max_halvings"].default
 STEPS_PER_PERIOD = {True: 40, False: 200}  # keyed by Scenario.quasi_static
 _initial_state = jax.jit(initial_state)
 
@@ -93,11 +127,48 @@ def _end_constraint(rod, name, end, node):
     return drive
 
 
-def _scene_dict(scenario, n_elements, damping=0.0, dt=None):
+def _rod_contact(scenario):
+    """Whether rod contact is modelled: where rods may touch each other or themselves
+    (the benchmark's rods always collide with each other; a rod with itself where
+    ``self_contact`` says it may), unless a drive slides (module docstring)."""
+    sliding = any(m is not None and m.slides_along is not None for rod in scenario.rods
+                  for m in (rod.start_motion, rod.end_motion))
+    return (len(scenario.rods) > 1 or scenario.self_contact) and not sliding
+
+
+def _has_contact(scenario):
+    return bool(scenario.obstacles) or _rod_contact(scenario)
+
+
+def _obstacle(index, obstacle, rods, n_elements):
+    """The scene obstacle ``obstacle<index>`` of a benchmark Cylinder or Plane (module
+    docstring), its friction the larger of its own and the rods' coefficients."""
+    mus = {max(obstacle.friction, rod.friction) for rod in rods}
+    if len(mus) > 1:
+        raise NotImplementedError("rods with different friction coefficients against one "
+                                  "obstacle (simsoft_jax has one coefficient per obstacle)")
+    out = {"name": f"obstacle{index}", "friction": mus.pop()}
+    if isinstance(obstacle, Cylinder):
+        axis, center = obstacle.unit_axis, np.asarray(obstacle.center, float)
+        for rod in rods:
+            x = rod.nodes(n_elements) - center
+            along = x @ axis
+            across = np.linalg.norm(x - np.outer(along, axis), axis=1)
+            if np.any((np.abs(along) > 0.5 * obstacle.length)
+                      & (across < obstacle.radius + 2.0 * rod.radius)):
+                raise NotImplementedError("a rod starts beyond a cylinder's end within its "
+                                          "reach (simsoft_jax's cylinders are infinite)")
+        return out | {"kind": "cylinder", "axis_point": center.tolist(),
+                      "axis": axis.tolist(), "radius": obstacle.radius}
+    if isinstance(obstacle, Plane):
+        return out | {"kind": "plane", "point": list(map(float, obstacle.point)),
+                      "normal": obstacle.unit_normal.tolist()}
+    raise NotImplementedError(f"an obstacle of kind {obstacle.kind!r}")
+
+
+def scene_dict(scenario, n_elements, damping=0.0, dt=None):
     """The scene (a dict, see docs/scene-format.md) of a benchmark scenario: static when
     ``dt`` is None, else dynamic with time step ``dt`` (s) and mass damping ``damping`` (1/s)."""
-    if scenario.obstacles:
-        raise NotImplementedError("simsoft_jax does not model contact with obstacles")
     rods, constraints, loads = [], [], []
     for i, rod in enumerate(scenario.rods):
         name = f"rod{i}"
@@ -131,9 +202,16 @@ def _scene_dict(scenario, n_elements, damping=0.0, dt=None):
         scene["solver"] = {"kind": "static"}
     else:
         scene["solver"] = {"kind": "dynamic", "t_end": scenario.duration, "dt": dt,
-                           "rho_inf": RHO_INF}
+                           "rho_inf": SimsoftJaxSolver._rho_inf(scenario)}
     if any(scenario.gravity):
         scene["gravity"] = {"vector": list(scenario.gravity)}
+    if scenario.obstacles:
+        scene["obstacles"] = [_obstacle(i, o, scenario.rods, n_elements)
+                              for i, o in enumerate(scenario.obstacles)]
+    if _has_contact(scenario):
+        scene["contact"] = {"self": _rod_contact(scenario)}
+        if any(o["friction"] > 0 for o in scene.get("obstacles", ())):
+            scene["contact"]["friction_law"] = "stick_slip"
     return scene
 
 
@@ -165,26 +243,48 @@ def _moves(scenario):
 
 class SimsoftJaxSolver:
     """cosseratbench adapter (the ``Solver`` protocol): ``run`` returns a Trajectory;
-    ``settings`` states the numerical choices made for a scenario."""
+    ``settings`` states the numerical choices made for a scenario. After a dynamic run,
+    ``statistics`` holds its time steps, accepted sub-steps (more than the steps where a
+    step was refused and split) and Newton iterations (all sub-steps); None before."""
     name = "simsoft_jax"
     backend_version = __version__
-    capabilities = frozenset({Capability.STRETCH, Capability.SHEAR})
+    capabilities = frozenset({Capability.STRETCH, Capability.SHEAR, Capability.ROD_CONTACT,
+                              Capability.CYLINDER_CONTACT, Capability.PLANE_CONTACT})
 
     def __init__(self, time_step_scale: float = 1.0) -> None:
         if not time_step_scale > 0:
             raise ValueError(f"time_step_scale: must be > 0, got {time_step_scale!r}")
         self.time_step_scale = float(time_step_scale)
+        self.statistics = None
 
-    def _steps(self, scenario, n_frames):
-        """Time step (s) and steps per frame (module docstring)."""
-        frame = scenario.duration / (n_frames - 1)
+    def _dt_max(self, scenario):
+        """The longest time step (s) of a scenario (module docstring)."""
         period = 2.0 * math.pi / scenario.slowest_frequency()
         dt_max = self.time_step_scale * period / STEPS_PER_PERIOD[scenario.quasi_static]
         samples = [np.diff(m.times).min() for rod in scenario.rods
                    for m in (rod.start_motion, rod.end_motion) if m is not None]
-        dt_max = min([dt_max] + samples)
-        k = max(1, math.ceil(frame / dt_max - 1e-9))
+        return min([dt_max] + samples)
+
+    def _steps(self, scenario, n_frames):
+        """Time step (s) and steps per frame (module docstring)."""
+        frame = scenario.duration / (n_frames - 1)
+        k = max(1, math.ceil(frame / self._dt_max(scenario) - 1e-9))
         return frame / k, k
+
+    def _max_halvings(self, scenario, model):
+        """Sub-stepping depth: the default 6, or with obstacles enough for a sub-step of
+        the longest step to resolve the contact time (module docstring). It depends on
+        the scenario's longest step only, so the benchmark's short warm-up run compiles
+        the program of the timed run."""
+        if not model.structure.obstacle_kinds:
+            return MAX_HALVINGS
+        ratio = RESOLUTION * self._dt_max(scenario) / float(contact_time(model))
+        return max(MAX_HALVINGS, math.ceil(math.log2(max(ratio, 1.0))))
+
+    @staticmethod
+    def _rho_inf(scenario):
+        """Generalized-alpha's rho_inf: 0 for quasi-static scenarios with contact."""
+        return RHO_INF_CONTACT if scenario.quasi_static and _has_contact(scenario) else RHO_INF
 
     def _damping(self, scenario):
         """Mass-proportional damping constant (1/s): 2 omega_slow when quasi-static."""
@@ -192,10 +292,11 @@ class SimsoftJaxSolver:
 
     def _static_model(self, scenario, n_elements):
         """The static model, or None when a static solve cannot stand for the scenario
-        (it is dynamic, an end is driven, or the supports leave a rigid motion free)."""
-        if not scenario.quasi_static or _moves(scenario):
+        (it is dynamic, an end is driven, it has contact, or the supports leave a rigid
+        motion free)."""
+        if not scenario.quasi_static or _moves(scenario) or _has_contact(scenario):
             return None
-        scene = _scene_dict(scenario, n_elements)
+        scene = scene_dict(scenario, n_elements)
         try:
             return build_model(Scene.from_dict(scene))
         except ValueError as error:
@@ -209,9 +310,16 @@ class SimsoftJaxSolver:
             return {"method": "static equilibrium (Newton on SE(3), load continuation)",
                     "elements": "helical SE(3), two-node"}
         dt, _ = self._steps(scenario, n_frames)
-        return {"method": "generalized-alpha on SE(3) (implicit)", "rho_inf": RHO_INF,
-                "time_step": dt, "mass_damping": self._damping(scenario),
-                "elements": "helical SE(3), two-node"}
+        out = {"method": "generalized-alpha on SE(3) (implicit)",
+               "rho_inf": self._rho_inf(scenario), "time_step": dt,
+               "mass_damping": self._damping(scenario), "elements": "helical SE(3), two-node"}
+        if _has_contact(scenario):
+            scene = scene_dict(scenario, n_elements, dt=dt)
+            model = build_model(Scene.from_dict(scene))
+            out["contact"] = {"penalty_stiffness": float(np.max(model.contact_stiffness)),
+                              "friction": scene["contact"].get("friction_law", "none"),
+                              "rod_contact": scene["contact"]["self"]}
+        return out
 
     def run(self, scenario, *, n_elements: int, n_frames: int):
         times = np.linspace(0.0, scenario.duration, n_frames)
@@ -226,7 +334,7 @@ class SimsoftJaxSolver:
                                 np.repeat(np.asarray(eq.p)[None], n_frames - 1, axis=0)])
             return _trajectory(model, times, R, p)
         dt, k = self._steps(scenario, n_frames)
-        scene = _scene_dict(scenario, n_elements, self._damping(scenario), dt)
+        scene = scene_dict(scenario, n_elements, self._damping(scenario), dt)
         with warnings.catch_warnings():
             # dt is at most the drives' sample spacing (_steps) up to round-off, which
             # the scene's "samples closer than dt" warning would report.
@@ -234,9 +342,11 @@ class SimsoftJaxSolver:
             model = build_model(Scene.from_dict(scene))
         # One compiled step, whatever dt and k: the benchmark's short warm-up run of the
         # same scenario compiles it, so compilation stays out of the timed run.
-        settings = DynamicSettings(dt=dt, steps=1, rho_inf=RHO_INF)
+        settings = DynamicSettings(dt=dt, steps=1, rho_inf=self._rho_inf(scenario),
+                                   max_halvings=self._max_halvings(scenario, model))
         state = _initial_state(model)
         R, p = [state.R], [state.p]
+        iterations = substeps = 0
         for _ in range(n_frames - 1):
             for _ in range(k):
                 traj = simulate(model, settings, state)
@@ -244,6 +354,10 @@ class SimsoftJaxSolver:
                     raise Diverged(f"simsoft_jax: {traj.message()}",
                                    time=float(traj.failed_at))
                 state = traj.final
+                iterations += int(traj.iterations.sum())
+                substeps += int(traj.substeps.sum())
             R.append(state.R)
             p.append(state.p)
+        self.statistics = {"steps": (n_frames - 1) * k, "substeps": substeps,
+                           "newton_iterations": iterations}
         return _trajectory(model, times, np.stack(R), np.stack(p))
