@@ -199,3 +199,34 @@ def pure_bending_scene(moment, EI, elements=4):
             "constraints": [{"kind": "clamp", "rod": "rod", "node": 0}],
             "loads": [{"kind": "moment", "rod": "rod", "node": -1, "frame": "local",
                        "vector": [0.0, moment, 0.0]}]}
+
+
+# ----------------------------------------------------------------------------- gradients
+def assert_gradient_equals_central_differences(f, theta, h=1e-5, rtol=1e-5,
+                                               every_component=True):
+    """``jax.grad(f)(theta)`` equals the central differences of step ``h`` of the scalar
+    ``f`` (theta (P,)) to ``rtol`` (and 1e-7 of the largest component), each component
+    of the difference nonzero (so the check can fail; only the largest with
+    ``every_component=False``, for a parameter the answer does not depend on)."""
+    import jax
+
+    theta = np.asarray(theta, float)
+    g = jax.grad(f)(theta)
+    fd = np.array([(f(theta + h * e) - f(theta - h * e)) / (2 * h)
+                   for e in np.eye(theta.size)])
+    assert np.all(np.isfinite(np.asarray(g)))
+    assert (np.abs(fd).min() if every_component else np.abs(fd).max()) > 1e-6
+    np.testing.assert_allclose(g, fd, rtol=rtol, atol=1e-7 * np.abs(fd).max())
+
+
+# ----------------------------------------------------------------------- rod-rod contact
+def crossing_rod(name, x0, length, elements, along_y=False, z=0.0):
+    """Scene dict of a straight, axially stiff rod (EI = 1 N m^2) along x from (x0, 0, z),
+    or along y from (0, x0, z) (``along_y``), for rod-rod contact tests."""
+    return {"name": name, "elements": elements,
+            "geometry": {"kind": "straight", "length": length},
+            "base": {"position": [0.0, x0, z] if along_y else [x0, 0.0, z],
+                     "rotation": [0.0, 0.0, np.pi / 2 if along_y else 0.0]},
+            "stiffness": {"EA": 1e7, "GAy": 1e7, "GAz": 1e7, "GJ": 1.0, "EIy": 1.0,
+                          "EIz": 1.0},
+            "inertia": {"rhoA": 1.0, "rhoJ": 1e-6, "rhoIy": 1e-6, "rhoIz": 1e-6}}

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
+from conftest import assert_gradient_equals_central_differences, crossing_rod
 
 L, RHOA, ELEMENTS = 0.5, 2.0, 4
 STIFFNESS = {"EA": 1e5, "GAy": 1e5, "GAz": 1e5, "GJ": 1.0, "EIy": 1.0, "EIz": 1.0}
@@ -82,7 +83,6 @@ def test_a_joint_on_a_sliding_node_is_refused():
 
 
 def test_gradient_through_welded_rods_on_a_sliding_drive_equals_finite_differences():
-    import jax
     import jax.numpy as jnp
 
     model = sj.build_model(sj.Scene.from_dict(welded_scene([0.4, 0.05, -0.03])))
@@ -94,28 +94,12 @@ def test_gradient_through_welded_rods_on_a_sliding_drive_equals_finite_differenc
         return sj.simulate(m, settings, differentiable=True).p[-1, -1] @ jnp.array(
             [1.0, 2.0, -1.0])
 
-    theta = jnp.array([1.0, 1.0])
-    g = jax.grad(tip)(theta)
-    h = 1e-5
-    fd = np.array([(tip(theta.at[i].add(h)) - tip(theta.at[i].add(-h))) / (2 * h)
-                   for i in range(2)])
-    assert np.abs(fd).min() > 1e-6
-    np.testing.assert_allclose(g, fd, rtol=1e-5)
+    assert_gradient_equals_central_differences(tip, [1.0, 1.0])
 
 
 # ------------------------------------------------ rod-rod contact with joints and bodies
 
 N_TOP, L_TOP, R_C = 4, 0.2, 0.005
-
-
-def contact_rod(name, x0, length, elements, along_y=False, z=0.0):
-    return {"name": name, "elements": elements,
-            "geometry": {"kind": "straight", "length": length},
-            "base": {"position": [0.0, x0, z] if along_y else [x0, 0.0, z],
-                     "rotation": [0.0, 0.0, np.pi / 2 if along_y else 0.0]},
-            "stiffness": {"EA": 1e7, "GAy": 1e7, "GAz": 1e7, "GJ": 1.0, "EIy": 1.0,
-                          "EIz": 1.0},
-            "inertia": {"rhoA": 1.0, "rhoJ": 1e-6, "rhoIy": 1e-6, "rhoIz": 1e-6}}
 
 
 def cantilever_on_a_rod(welded: bool, kind="static"):
@@ -125,16 +109,16 @@ def cantilever_on_a_rod(welded: bool, kind="static"):
     from simsoft_jax.physics.terms.contact import SMOOTHING
     z = 2 * R_C - SMOOTHING * 2 * R_C      # a smoothing width into the contact
     if welded:
-        top = [contact_rod("a", -L_TOP / 2, L_TOP / 2, N_TOP // 2, z=z),
-               contact_rod("b", 0.0, L_TOP / 2, N_TOP // 2, z=z)]
+        top = [crossing_rod("a", -L_TOP / 2, L_TOP / 2, N_TOP // 2, z=z),
+               crossing_rod("b", 0.0, L_TOP / 2, N_TOP // 2, z=z)]
         joints = [{"kind": "weld", "a": {"rod": "a", "node": -1},
                    "b": {"rod": "b", "node": 0}}]
     else:
-        top, joints = [contact_rod("a", -L_TOP / 2, L_TOP, N_TOP, z=z)], []
+        top, joints = [crossing_rod("a", -L_TOP / 2, L_TOP, N_TOP, z=z)], []
     solver = ({"kind": "static", "load_steps": 5} if kind == "static" else
               {"kind": "dynamic", "dt": 0.005, "t_end": 0.03, "rho_inf": 0.8})
     return {"solver": solver,
-            "rods": top + [contact_rod("bottom", -L_TOP / 2, L_TOP, N_TOP, along_y=True)],
+            "rods": top + [crossing_rod("bottom", -L_TOP / 2, L_TOP, N_TOP, along_y=True)],
             "constraints": [{"kind": "clamp", "rod": "a", "node": 0}]
                            + [{"kind": "clamp", "rod": "bottom", "node": n} for n in (0, -1)],
             "joints": joints,

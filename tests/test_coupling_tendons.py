@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
+from conftest import assert_gradient_equals_central_differences, crossing_rod
 from simsoft_jax.couplings import tendon_lengths
 
 EA, GA, GJ, EI = 2e3, 1e3, 0.4, 0.5
@@ -131,28 +132,12 @@ def test_gradient_through_a_displaced_tendon_on_a_sliding_drive_equals_finite_di
         p = sj.simulate(m, settings, differentiable=True).p
         return (p[-1, -1] + p[-1, 0]) @ jnp.array([1.0, 2.0, -1.0])
 
-    theta = jnp.array([1.0, 1.0])
-    g = jax.grad(tip)(theta)
-    h = 1e-5
-    fd = np.array([(tip(theta.at[i].add(h)) - tip(theta.at[i].add(-h))) / (2 * h)
-                   for i in range(2)])
-    assert np.abs(fd).min() > 1e-6
-    np.testing.assert_allclose(g, fd, rtol=1e-5)
+    assert_gradient_equals_central_differences(tip, [1.0, 1.0])
 
 
 # ------------------------------------------------ rod-rod contact with the other couplings
 
 N_TOP, L_TOP, R_C = 4, 0.2, 0.005
-
-
-def contact_rod(name, x0, length, elements, along_y=False, z=0.0):
-    return {"name": name, "elements": elements,
-            "geometry": {"kind": "straight", "length": length},
-            "base": {"position": [0.0, x0, z] if along_y else [x0, 0.0, z],
-                     "rotation": [0.0, 0.0, np.pi / 2 if along_y else 0.0]},
-            "stiffness": {"EA": 1e7, "GAy": 1e7, "GAz": 1e7, "GJ": 1.0, "EIy": 1.0,
-                          "EIz": 1.0},
-            "inertia": {"rhoA": 1.0, "rhoJ": 1e-6, "rhoIy": 1e-6, "rhoIz": 1e-6}}
 
 
 def on_a_crossing_rod(base, t_end=0.03, tip_force=(0.0, 0.0, -2.0), tendon=None):
@@ -161,8 +146,8 @@ def on_a_crossing_rod(base, t_end=0.03, tip_force=(0.0, 0.0, -2.0), tendon=None)
     from simsoft_jax.physics.terms.contact import SMOOTHING
     z = 2 * R_C - SMOOTHING * 2 * R_C      # a smoothing width into the contact
     return {"solver": {"kind": "dynamic", "dt": 0.005, "t_end": t_end, "rho_inf": 0.8},
-            "rods": [contact_rod("a", -L_TOP / 2, L_TOP, N_TOP, z=z),
-                     contact_rod("bottom", -L_TOP / 2, L_TOP, N_TOP, along_y=True)],
+            "rods": [crossing_rod("a", -L_TOP / 2, L_TOP, N_TOP, z=z),
+                     crossing_rod("bottom", -L_TOP / 2, L_TOP, N_TOP, along_y=True)],
             "constraints": [dict(base, rod="a", node=0)]
                            + [{"kind": "clamp", "rod": "bottom", "node": n} for n in (0, -1)],
             "loads": [{"kind": "force", "rod": "a", "node": -1, "vector": list(tip_force)}],
@@ -214,13 +199,7 @@ def test_gradient_through_rod_contact_on_a_sliding_drive_equals_finite_differenc
         p = sj.simulate(m, settings, differentiable=True).p
         return (p[-1, N_TOP] + 10.0 * p[-1, 0]) @ jnp.array([1.0, 2.0, -1.0])
 
-    theta = jnp.array([1.0, 1.0])
-    g = jax.grad(tip)(theta)
-    h = 1e-5
-    fd = np.array([(tip(theta.at[i].add(h)) - tip(theta.at[i].add(-h))) / (2 * h)
-                   for i in range(2)])
-    assert np.abs(fd).min() > 1e-6
-    np.testing.assert_allclose(g, fd, rtol=1e-5)
+    assert_gradient_equals_central_differences(tip, [1.0, 1.0])
 
 
 def test_displaced_tendon_pulls_a_rod_onto_a_crossing_rod_as_its_tension_does():
