@@ -95,7 +95,8 @@ def test_sj_run_says_when_it_compiles(tmp_path):
 
 def test_solve_static_and_simulate_say_when_they_compile(tmp_path):
     """The Python API's own solvers announce their compile as ``sj.run`` does: one line
-    each for the static solver, the dynamic one and the differentiable dynamic one of a
+    each for the static solver, the dynamic one and a rollout's gradient (a
+    differentiable rollout's forward pass is the dynamic solver already compiled) of a
     new structure, with its time, at the first call only; ``SIMSOFT_JAX_QUIET=1``
     silences it."""
     env = dict(os.environ, SIMSOFT_JAX_CACHE_DIR=str(tmp_path / "cache"),
@@ -116,15 +117,20 @@ def test_solve_static_and_simulate_say_when_they_compile(tmp_path):
                "settings = sj.DynamicSettings(dt=0.01, steps=2)\n"
                "for _ in range(2):\n"
                "    assert sj.simulate(sj.build_model(scene), settings).converged\n"
+               "import jax\n"
+               "model = sj.build_model(scene)\n"
+               "def tip(k):\n"
+               "    return sj.simulate(model.replace(stiffness=model.stiffness * k),\n"
+               "                       settings, differentiable=True).p[-1, -1, 2]\n"
                "for _ in range(2):\n"
-               "    assert sj.simulate(sj.build_model(scene), settings,\n"
-               "                       differentiable=True).converged\n")
+               "    assert abs(float(jax.grad(tip)(1.0))) > 0.0\n")
     first = python(static + dynamic, env)
     assert first.returncode == 0, first.stderr
     lines = [line for line in first.stderr.splitlines() if "compiling" in line]
     assert len(lines) == 3, first.stderr
-    for line, what in zip(lines, ("static", "dynamic", "dynamic")):
-        assert re.fullmatch(rf"compiling the {what} solver for this scene structure "
+    for line, what in zip(lines, ("static solver", "dynamic solver",
+                                  "rollout gradient program")):
+        assert re.fullmatch(rf"compiling the {what} for this scene structure "
                             r"\(kept for next time\)\.\.\. \d+\.\d s", line), line
     quiet = python(static, dict(env, SIMSOFT_JAX_QUIET="1", SIMSOFT_JAX_CACHE="0"))
     assert quiet.returncode == 0, quiet.stderr
