@@ -92,9 +92,8 @@ def residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p,
 
 class StepFunctions(NamedTuple):
     """``F(w)`` pieces of one step of size h from a state (see :func:`step_functions`):
-    new_state(w) -> State; residual(w) (N,6), held dofs zeroed; newton_residual(w, mu):
-    the rods' residual of residual_and_matrix (sliding drives reduced, no couplings),
-    without the matrix; residual_and_matrix(w, mu) -> (residual, blocks); t1: the time at
+    new_state(w) -> State; newton_residual(w, mu): the rods' residual of
+    residual_and_matrix (sliding drives reduced, no couplings), without the matrix; residual_and_matrix(w, mu) -> (residual, blocks); t1: the time at
     the end of the step. With the couplings' multipliers ``mu`` (M,) (:func:`border_sizes`:
     joint multipliers, tendon tensions): system_residual(w, mu) -> (r (N,6), r_z (m,)),
     the Newton residual with the couplings' forces and own residuals at ``t1``;
@@ -102,7 +101,6 @@ class StepFunctions(NamedTuple):
     (:class:`~simsoft_jax.couplings.mechanisms.Coupled`; an empty border without couplings),
     both from :mod:`simsoft_jax.couplings.coupling`."""
     new_state: object
-    residual: object
     newton_residual: object
     residual_and_matrix: object
     system_residual: object
@@ -130,10 +128,6 @@ def step_functions(model, inert, rho_inf, state: State, h,
         a1, v1, vd1 = fields(rho_inf, state, w, h)
         R1, p1 = jax.vmap(lie.compose_exp)(state.R, state.p, w)
         return State(R1, p1, v1, vd1, a1, t1, stick_slip.updated(loaded, R1, p1, t1))
-
-    def residual(w):
-        s1 = new_state(w)
-        return dynamic_residual(loaded, inert, s1.R, s1.p, s1.v, s1.vd)
 
     def slide(w):
         """The sliding drives' maps at ``w`` (:func:`slide_maps`), None without them."""
@@ -170,5 +164,5 @@ def step_functions(model, inert, rho_inf, state: State, h,
         return coupling.couple(coupling.with_multipliers(loaded, mu), s1.R, s1.p, mu, r,
                                blocks, jax.vmap(lie.tangent_se3)(w), slide(w))
 
-    return StepFunctions(new_state, residual, newton_residual, residual_and_matrix,
+    return StepFunctions(new_state, newton_residual, residual_and_matrix,
                          system_residual, system, t1)
