@@ -4,18 +4,18 @@ built as one, whatever else is in the scene (the weld is rigid, and each feature
 the welded pair as it acts on the one rod). The features: a body welded at the tip
 (joints and bodies), rod-rod contact with a clamped crossing rod, a sphere with Coulomb
 friction under the tip (obstacle contact with friction), a displacement-controlled
-tendon, a tension tendon, a pressure chamber, a sliding drive at the root (dynamics: a
-static solve has no force to hold a slide) and a point mass at the tip. The rollouts'
-gradients (tip position in the stiffness and the tip force) equal central finite
-differences.
+tendon, a tension tendon, a pressure chamber and a point mass at the tip. The root is
+clamped in statics; in dynamics it is on a drive sliding along the rod (a static solve
+has no force to hold a slide), in every pair. The rollouts' gradients (tip position in
+the stiffness and the tip force) equal central finite differences.
 
-All features are in one scene structure (two with the sliding drive), so that its
+All features are in one scene structure per kind (static, dynamic), so that its
 programs compile once; a pair switches the other features off through the model's
 arrays (:func:`only`): zero tension, pressure and masses (the body a massless
 connector), the sphere and the crossing rod moved 1 m away. The displacement-controlled
-tendon cannot be switched off: off the pair it runs along the centreline with its length
-held (the rods' axial stiffness is 1e4 N, so it changes little) -- the equivalence holds
-whatever else the scene holds."""
+tendon and the sliding drive cannot be switched off: off the pair the tendon runs along
+the centreline with its length held (the rods' axial stiffness is 1e4 N, so it changes
+little) -- the equivalence holds whatever else the scene holds."""
 from __future__ import annotations
 
 import functools
@@ -28,8 +28,7 @@ import pytest
 import simsoft_jax as sj
 
 FEATURES = ("body", "rod_contact", "friction", "displaced_tendon", "tendon", "chamber",
-            "slide", "mass")
-DYNAMIC_ONLY = {"slide"}
+            "mass")
 L, ELEMENTS, R = 0.4, 4, 0.01        # main rod: length (m), elements, contact radius (m)
 SPHERE = 0.05                        # radius (m) of the sphere under the tip
 TIP_FORCE = [0.3, 0.2, -1.0]         # N, world
@@ -46,8 +45,8 @@ def _rod(name, x0, length, elements, along_y=False, z=0.0):
 
 def scene(features, welded: bool, kind: str) -> dict:
     """The main rod along x from the origin (one rod "a", or rods "a" and "b" welded at
-    mid-span), held at its root (clamped, or on a drive sliding along x), under gravity
-    and a tip force, with ``features``."""
+    mid-span), held at its root (static: clamped; dynamic: on a drive sliding along x),
+    under gravity and a tip force, with ``features``."""
     from simsoft_jax.physics.terms.contact import SMOOTHING
     if welded:
         rods = [_rod("a", 0.0, L / 2, ELEMENTS // 2), _rod("b", L / 2, L / 2, ELEMENTS // 2)]
@@ -55,7 +54,7 @@ def scene(features, welded: bool, kind: str) -> dict:
     else:
         rods, joints = [_rod("a", 0.0, L, ELEMENTS)], []
     tip = "b" if welded else "a"
-    if "slide" in features:
+    if kind == "dynamic":
         root = {"kind": "drive", "rod": "a", "node": 0, "times": [0.0],
                 "displacement": [[0.0, 0.0, 0.0]], "slides_along": [1.0, 0.0, 0.0]}
     else:
@@ -112,10 +111,9 @@ def _main_rod(positions, structure):
 
 
 @functools.lru_cache(maxsize=None)
-def model(welded: bool, kind: str, slide: bool):
-    """The model of the scene with every feature (the sliding drive when ``slide``)."""
-    features = set(FEATURES) - (set() if slide else {"slide"})
-    return sj.build_model(sj.Scene.from_dict(scene(features, welded, kind)))
+def model(welded: bool, kind: str):
+    """The model of the scene with every feature."""
+    return sj.build_model(sj.Scene.from_dict(scene(set(FEATURES), welded, kind)))
 
 
 def only(m, pair):
@@ -150,7 +148,6 @@ def only(m, pair):
 
 
 PAIRS = list(itertools.combinations(FEATURES, 2))
-STATIC_PAIRS = [p for p in PAIRS if not DYNAMIC_ONLY & set(p)]
 STATIC = sj.StaticSettings(load_steps=4)
 DYNAMIC = sj.DynamicSettings(dt=0.005, steps=4, rho_inf=0.8)
 
@@ -164,9 +161,9 @@ def _assert_equal_main_rods(welded, one, structures):
                                atol=1e-7 * moved + 1e-12)
 
 
-@pytest.mark.parametrize("pair", STATIC_PAIRS, ids="+".join)
+@pytest.mark.parametrize("pair", PAIRS, ids="+".join)
 def test_static_pair_welded_equals_one_rod(pair):
-    models = [only(model(w, "static", False), pair) for w in (True, False)]
+    models = [only(model(w, "static"), pair) for w in (True, False)]
     eqs = [sj.solve_static(m, STATIC) for m in models]
     for eq in eqs:
         assert bool(eq.converged), eq.message()
@@ -175,19 +172,19 @@ def test_static_pair_welded_equals_one_rod(pair):
 
 @pytest.mark.parametrize("pair", PAIRS, ids="+".join)
 def test_dynamic_pair_welded_equals_one_rod(pair):
-    models = [only(model(w, "dynamic", "slide" in pair), pair) for w in (True, False)]
+    models = [only(model(w, "dynamic"), pair) for w in (True, False)]
     runs = [sj.simulate(m, DYNAMIC) for m in models]
     for run in runs:
         assert bool(np.all(run.converged)), run
     _assert_equal_main_rods(runs[0].p, runs[1].p, [m.structure for m in models])
 
 
-def _tip(slide: bool):
+def _tip():
     """The welded model's tip node and the measure ``tip . weights`` of its rollout in
     ``theta = (stiffness scale, tip force scale)``. Not jitted: the rollout is the
     program the pair tests compiled already, and ``jax.grad`` adds only the adjoint's
     backward program, one for all pairs with the same structure."""
-    b = next(rod for rod in model(True, "dynamic", slide).structure.rods if rod.name == "b")
+    b = next(rod for rod in model(True, "dynamic").structure.rods if rod.name == "b")
     tip = b.first_node + b.nodes - 1
     weights = np.array([1.0, 2.0, -1.0])
 
@@ -201,8 +198,8 @@ def _tip(slide: bool):
 @pytest.mark.parametrize("pair", PAIRS, ids="+".join)
 def test_dynamic_pair_gradient_equals_finite_differences(pair):
     """d(tip . c)/d(stiffness scale, tip force scale) of the welded pair's rollout."""
-    m = only(model(True, "dynamic", "slide" in pair), pair)
-    value = _tip("slide" in pair)
+    m = only(model(True, "dynamic"), pair)
+    value = _tip()
     gradient = jax.grad(value)
     theta, h = np.array([1.0, 1.0]), 1e-5
     fd = np.array([(value(theta + h * e, m) - value(theta - h * e, m)) / (2 * h)
