@@ -5,7 +5,8 @@
 Lane 1 runs the tests not marked ``slow``, lane 2 the ``slow`` ones (example and notebook
 runs, long rollouts): 31 and 25 min for the 1370 other and 110 slow tests on a
 2-core AMD EPYC VM with the test compile flags of ``tests/conftest.py``. Each lane's
-output goes to a log file and is printed whole when the lane ends (never interleaved);
+output goes to a log file and is printed whole when the lane ends (never interleaved),
+with its 25 slowest tests;
 the last line sums both lanes in pytest's words
 (``total: N passed, N failed, N skipped``). The exit status is 0 only when both lanes pass
 (a lane that selects no test at all, pytest's status 5, counts as passed).
@@ -24,6 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 LANES = (("not slow", "-m", "not slow"), ("slow", "-m", "slow"))
 OUTCOMES = ("passed", "failed", "errors", "skipped", "xfailed", "xpassed")
 NO_TESTS_COLLECTED = 5
+SLOWEST = 25            # each lane's log ends with its slowest tests (pytest --durations)
 
 
 def lane_counts(text: str) -> dict[str, int]:
@@ -46,7 +48,8 @@ def main(extra: list[str]) -> int:
     procs = []
     for name, *selection in LANES:
         log = open(logs / f"{name.replace(' ', '_')}.log", "w", encoding="utf-8")
-        proc = subprocess.Popen([sys.executable, "-m", "pytest", "-q", *selection, *extra],
+        proc = subprocess.Popen([sys.executable, "-m", "pytest", "-q", f"--durations={SLOWEST}",
+                                 *selection, *extra],
                                 cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, env=os.environ)
         procs.append((name, proc, log))
     total = {key: 0 for key in OUTCOMES}
