@@ -309,8 +309,9 @@ def compile_stored(jitted, args: tuple, out_tree, name: str, variant: str = ""):
         with announced(name, kept=False):
             return jitted.lower(*args).compile()
     leaves, tree = jax.tree_util.tree_flatten(args)
-    signature = repr((name, variant, tree, [(np.shape(x), str(x.dtype if hasattr(x, "dtype") else np.result_type(x)),
-                                    bool(getattr(x, "weak_type", False))) for x in leaves]))
+    signature = repr((name, variant, tree, [
+        (np.shape(x), str(x.dtype if hasattr(x, "dtype") else np.result_type(x)),
+         bool(getattr(x, "weak_type", False))) for x in leaves]))
     key = hashlib.sha256((signature + _source_key()).encode()).hexdigest()[:40]
     path = Path(folder) / "programs" / f"{name.replace(' ', '_')}-{key}.xla"
     compiled = _load(path, leaves, out_tree.num_leaves, name)
