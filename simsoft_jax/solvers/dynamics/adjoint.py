@@ -181,9 +181,10 @@ def reverse_whole_steps(rebuild, floats, start: State, R, p, v, mu, saved_bar: S
 class Programs(NamedTuple):
     """The rollout programs :func:`reverse_rollout` runs (module functions of
     :mod:`.rollout`): plain(model, settings, state) -> Trajectory (no derivative);
-    recorded(model, settings, state) -> (Trajectory, Records); driven(model, settings)
-    -> the Trajectory of the compiled program of :func:`~simsoft_jax.run` (from the start
-    state, NumPy arrays); initial(model) -> the start State."""
+    recorded(model, settings, state) -> (Trajectory, Records); driven(model, settings,
+    state) -> the Trajectory of the compiled program of :func:`~simsoft_jax.run` (from
+    ``state``, or the start state when None; NumPy arrays); initial(model) -> the start
+    State."""
     plain: object
     recorded: object
     driven: object
@@ -205,9 +206,10 @@ def reverse_rollout(programs: Programs, model, settings, state):
     mode by the discrete adjoint (module docstring); derivatives of a failed rollout are
     NaN.
 
-    Forward pass: called on arrays (not inside ``jit`` or ``vmap``) from the start state
-    with ``save_every == 1``, the compiled program of :func:`~simsoft_jax.run`
-    (``programs.driven``: no new compile), whose saved states give the backward pass
+    Forward pass: called on arrays (not inside ``jit`` or ``vmap``) with
+    ``save_every == 1`` and without stick-slip friction, from the start state or a given
+    one, the compiled program of :func:`~simsoft_jax.run` (``programs.driven``: no new
+    compile), whose saved states give the backward pass
     what it needs when no step was sub-stepped and none failed; otherwise
     ``programs.recorded``, which also keeps the steps' :class:`Records`. Backward pass: a
     compiled program of its own (:func:`stored_backward`), for the leaves of the model
@@ -224,15 +226,14 @@ def _reverse_forward(programs: Programs, model, settings, state):
     model, settings, state = values(model), values(settings), values(state)
     concrete = not traced(model, settings, state)
     # the stick-slip anchors are not saved: their rollouts keep records
-    if (state is None and settings.save_every == 1 and concrete
-            and not stick_slip.active(model)):
-        traj = programs.driven(model, settings)
+    if settings.save_every == 1 and concrete and not stick_slip.active(model):
+        traj = programs.driven(model, settings, state)
         # a failed rollout has no derivative (NaN): its sub-steps need no record
         if not bool(traj.converged) or np.all(np.asarray(traj.substeps) == 1):
             traj = jax.tree_util.tree_map(jnp.asarray, traj)
             mu = (traj.multipliers if traj.multipliers is not None
                   else jnp.zeros(traj.time.shape + (0,)))
-            return traj, (perturbed, model, settings, None,
+            return traj, (perturbed, model, settings, state,
                           (traj.R, traj.p, traj.v, mu, traj.converged), None)
     args = (model, settings, state)
     with (compile_cache.first_call("recorded rollout", args) if concrete
