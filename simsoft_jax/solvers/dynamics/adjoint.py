@@ -230,9 +230,10 @@ def _reverse_forward(programs: Programs, model, settings, state):
         traj = programs.driven(model, settings, state)
         # a failed rollout has no derivative (NaN): its sub-steps need no record
         if not bool(traj.converged) or np.all(np.asarray(traj.substeps) == 1):
-            traj = jax.tree_util.tree_map(jnp.asarray, traj)
+            # device_put: no program per shape (jnp.asarray compiles one, ~25 ms each)
+            traj = jax.tree_util.tree_map(jax.device_put, traj)
             mu = (traj.multipliers if traj.multipliers is not None
-                  else jnp.zeros(traj.time.shape + (0,)))
+                  else np.zeros(traj.time.shape + (0,)))
             return traj, (perturbed, model, settings, state,
                           (traj.R, traj.p, traj.v, mu, traj.converged), None)
     args = (model, settings, state)
@@ -244,7 +245,7 @@ def _reverse_forward(programs: Programs, model, settings, state):
 
 def _reverse_backward(programs: Programs, residuals, traj_bar):
     perturbed, model, settings, state, saved, records = residuals
-    zero = lambda x: (jnp.zeros(x.aval.shape, x.aval.dtype)  # noqa: E731
+    zero = lambda x: (np.zeros(x.aval.shape, x.aval.dtype)  # noqa: E731
                       if isinstance(x, jax.custom_derivatives.SymbolicZero) else x)
     bar = (traj_bar.time, traj_bar.R, traj_bar.p, traj_bar.v, traj_bar.final)
     bar = jax.tree_util.tree_map(
