@@ -117,6 +117,64 @@ def test_second_process_reads_the_gradient_programs_from_the_cache(tmp_path):
     assert counts[1]["misses"] == 0 and counts[1]["hits"] >= counts[0]["misses"] - 1, counts
 
 
+# the derivative of a falling rod's tip height after 5 steps with respect to a factor on
+# its stiffness (reverse mode, the rollout's adjoint) and its central difference, in a
+# process of its own, with the compiled and the loaded programs counted by name
+_COUNTING_ROLLOUT_GRADIENT = """
+import collections, json, sys, jax
+import simsoft_jax as sj
+from simsoft_jax.solvers import compile_cache
+compiled, loaded = collections.Counter(), collections.Counter()
+def listen(event, duration, **kw):
+    if event == "/jax/core/compile/backend_compile_duration":
+        compiled.update([kw.get("fun_name", "?")])
+    elif event == compile_cache.LOADED_EVENT:
+        loaded.update([kw.get("fun_name", "?")])
+jax.monitoring.register_event_duration_secs_listener(listen)
+scene = sj.Scene.from_dict(json.loads(sys.argv[1]))
+model = sj.build_model(scene)
+settings = sj.DynamicSettings(dt=0.01, steps=5)
+def tip(k, differentiable=True):
+    return sj.simulate(model.replace(stiffness=model.stiffness * k), settings,
+                       differentiable=differentiable).p[-1, -1, 2]
+slope = float(jax.grad(tip)(1.0))
+h = 1e-4
+fd = (float(tip(1.0 + h, False)) - float(tip(1.0 - h, False))) / (2 * h)
+print(json.dumps({"slope": slope, "fd": fd, "compiled": dict(compiled),
+                  "loaded": dict(loaded)}))
+"""
+
+
+def test_second_process_loads_the_rollout_gradient_program(tmp_path):
+    """``jax.grad`` through a differentiable rollout, outside any ``jit``: the first
+    process compiles the dynamic solver and the gradient's backward program and keeps
+    both in the cache folder; a second process loads both and compiles neither. Both
+    give the central-difference slope."""
+    env = dict(os.environ, SIMSOFT_JAX_CACHE_DIR=str(tmp_path / "xla"),
+               JAX_COMPILATION_CACHE_DIR=str(tmp_path / "xla"))
+    env.pop("SIMSOFT_JAX_CACHE", None)
+    scene = dict(cantilever(0.0), solver={"kind": "dynamic", "dt": 0.01, "t_end": 0.05},
+                 loads=[], gravity={"vector": [0.0, 0.0, -9.81]})
+    scene["rods"][0]["stiffness"] = {"EA": 1e4, "GAy": 1e4, "GAz": 1e4, "GJ": 0.5,
+                                     "EIy": 0.5, "EIz": 0.5}
+    counts = []
+    for _ in range(2):
+        out = subprocess.run([sys.executable, "-c", _COUNTING_ROLLOUT_GRADIENT,
+                              json.dumps(scene)], capture_output=True, text=True,
+                             timeout=600, env=env)
+        assert out.returncode == 0, out.stderr
+        counts.append(json.loads(out.stdout.splitlines()[-1]))
+    for c in counts:
+        assert abs(c["slope"]) > 1e-6, c
+        np.testing.assert_allclose(c["slope"], c["fd"], rtol=1e-5)
+    first, second = counts
+    assert first["compiled"].get("jit(rollout_gradient)") == 1, first
+    stored = {p.name.split("-")[0] for p in (tmp_path / "xla" / "programs").iterdir()}
+    assert stored == {"rollout", "rollout_gradient"}, stored
+    assert not any("gradient" in name or "chunk" in name for name in second["compiled"]), second
+    assert second["loaded"] == {"jit(rollout)": 1, "jit(rollout gradient)": 1}, second
+
+
 def test_cache_folder_and_switch(monkeypatch, tmp_path):
     """Default folder: $SIMSOFT_JAX_CACHE_DIR, else $XDG_CACHE_HOME/simsoft_jax/xla, else
     ~/.cache/simsoft_jax/xla; SIMSOFT_JAX_CACHE=0 (or --no-cache) leaves JAX alone."""

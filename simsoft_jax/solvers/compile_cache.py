@@ -291,7 +291,7 @@ def _compile(jitted, tree, leaves, name: str, path: Path):
     return compiled
 
 
-def compile_stored(jitted, args: tuple, out_tree, name: str):
+def compile_stored(jitted, args: tuple, out_tree, name: str, variant: str = ""):
     """``jitted.lower(*args).compile()`` that later processes load instead of tracing and
     compiling again.
 
@@ -301,16 +301,19 @@ def compile_stored(jitted, args: tuple, out_tree, name: str):
     process loads it. ``jitted``: a :func:`simsoft_jax.math.xla.jit` program (compiled with its
     own options). ``out_tree``: the pytree structure of the outputs. Returns a callable
     with ``jitted``'s signature. Compiling (not loading) is announced (:func:`announced`).
+    ``variant``: what else the program depends on (e.g. the static arguments bound in
+    ``jitted``), part of the key.
     """
     folder = jax.config.jax_compilation_cache_dir
     if not folder:
         with announced(name, kept=False):
             return jitted.lower(*args).compile()
     leaves, tree = jax.tree_util.tree_flatten(args)
-    signature = repr((name, tree, [(np.shape(x), str(x.dtype if hasattr(x, "dtype") else np.result_type(x)),
-                                    bool(getattr(x, "weak_type", False))) for x in leaves]))
+    signature = repr((name, variant, tree, [
+        (np.shape(x), str(x.dtype if hasattr(x, "dtype") else np.result_type(x)),
+         bool(getattr(x, "weak_type", False))) for x in leaves]))
     key = hashlib.sha256((signature + _source_key()).encode()).hexdigest()[:40]
-    path = Path(folder) / "programs" / f"{name}-{key}.xla"
+    path = Path(folder) / "programs" / f"{name.replace(' ', '_')}-{key}.xla"
     compiled = _load(path, leaves, out_tree.num_leaves, name)
     if compiled is None:
         with announced(name, kept=True):

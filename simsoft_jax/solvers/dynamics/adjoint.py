@@ -6,9 +6,10 @@ when it saves every step (the per-step increments ``w`` are recovered from the s
 states), else a rollout that also keeps, per macro step, the state it started from and
 its accepted sub-steps (:class:`Records`: the increments ``w`` and multipliers ``mu``).
 Memory: O(steps x nodes), the states of every step. Its backward is a program of its
-own: a reverse ``lax.scan`` over the steps. A sub-step maps ``s_n`` to
-``s_{n+1} = N(s_n, w_n; q)`` (spec S54, S66) with ``w_n`` solving
-``F(w, mu; s_n, q) = 0``; for the cotangent ``sbar_{n+1}``:
+own, kept in the cache folder like the solvers' (:func:`stored_backward`): a reverse
+``lax.scan`` over the steps. A sub-step maps ``s_n`` to ``s_{n+1} = N(s_n, w_n; q)``
+(spec S54, S66) with ``w_n`` solving ``F(w, mu; s_n, q) = 0``; for the cotangent
+``sbar_{n+1}``:
 
 * ``(sbar_n, qbar, wbar) = (dN/ds_n, dN/dq, dN/dw)^T sbar_{n+1}``;
 * ``lambda = J^-T wbar`` on the free unknowns (``J`` the bordered iteration matrix at the
@@ -143,30 +144,47 @@ def reverse_steps(rebuild, floats, records: Records, saved_bar: State, final_bar
     return jax.lax.scan(block, (final_bar, zeros), (saved_bar, records), reverse=True)[0]
 
 
-def records_from_states(params, start: State, R, p, v, mu) -> Records:
-    """The :class:`Records` of a rollout of whole steps (no sub-step) saved at every step,
-    one step per block: the increments ``w_n = log((R_n, p_n)^-1 (R_{n+1}, p_{n+1}))``
-    (spec S54 inverted; :func:`~simsoft_jax.physics.element.relative_twist`), the
-    accelerations ``vd``, ``a`` again by the scheme's update (S66) from ``start``.
-    ``params = (model, settings)``; R (T,N,3,3), p (T,N,3), v (T,N,6): the saved states,
-    the start first; mu (T,M): the multipliers after each step (row 0 unused)."""
-    def one(state, xs):
-        R1, p1, v1, mu1 = xs
-        w = jax.vmap(element.relative_twist)(state.R, state.p, R1, p1)
-        after = sub_step(params, state, 1.0, w)._replace(R=R1, p=p1, v=v1)
-        return after, Records(state, SubSteps(jnp.ones(1), w[None], mu1[None]),
-                              jnp.array(1), jnp.array(True))
+def reverse_whole_steps(rebuild, floats, start: State, R, p, v, mu, saved_bar: State,
+                        final_bar: State):
+    """``(sbar_0, qbar)`` as :func:`reverse_steps` for a rollout of whole steps (no
+    sub-step, none failed) saved at every step: the steps' start states again from the
+    saved states, then one reverse scan of :func:`sub_step_cotangent`, a step each
+    (no sub-step loop, no record of failure: a smaller program to compile).
 
-    records = jax.lax.scan(one, start, (R[1:], p[1:], v[1:], mu[1:]))[1]
-    return jax.tree_util.tree_map(lambda x: x[:, None], records)
+    The increments ``w_n = log((R_n, p_n)^-1 (R_{n+1}, p_{n+1}))`` (spec S54 inverted;
+    :func:`~simsoft_jax.physics.element.relative_twist`); the accelerations ``vd``, ``a``
+    again by the scheme's update (S66) from ``start``. ``rebuild(floats) = (model,
+    settings)``; R (T,N,3,3), p (T,N,3), v (T,N,6): the saved states, the start first;
+    mu (T,M): the multipliers after each step (row 0 unused); ``saved_bar`` the
+    cotangents of the saved states after the start (stacked), ``final_bar`` of the last."""
+    params = rebuild(floats)
+
+    def forward(state, xs):
+        R1, p1, v1 = xs
+        w = jax.vmap(element.relative_twist)(state.R, state.p, R1, p1)
+        return sub_step(params, state, 1.0, w)._replace(R=R1, p=p1, v=v1), (state, w)
+
+    starts, w = jax.lax.scan(forward, start, (R[1:], p[1:], v[1:]))[1]
+
+    def back(carry, xs):
+        s_bar, q_bar = carry
+        state, w_n, mu_n, bar = xs
+        s_bar, q_more = sub_step_cotangent(rebuild, floats, state, 1.0, w_n, mu_n,
+                                           _add(s_bar, bar))
+        return (s_bar, _add(q_bar, q_more)), None
+
+    zeros = [jnp.zeros_like(x) for x in floats]
+    return jax.lax.scan(back, (final_bar, zeros), (starts, w, mu[1:], saved_bar),
+                        reverse=True)[0]
 
 
 class Programs(NamedTuple):
     """The rollout programs :func:`reverse_rollout` runs (module functions of
     :mod:`.rollout`): plain(model, settings, state) -> Trajectory (no derivative);
-    recorded(model, settings, state) -> (Trajectory, Records); driven(model, settings)
-    -> the Trajectory of the compiled program of :func:`~simsoft_jax.run` (from the start
-    state, NumPy arrays); initial(model) -> the start State."""
+    recorded(model, settings, state) -> (Trajectory, Records); driven(model, settings,
+    state) -> the Trajectory of the compiled program of :func:`~simsoft_jax.run` (from
+    ``state``, or the start state when None; NumPy arrays); initial(model) -> the start
+    State."""
     plain: object
     recorded: object
     driven: object
@@ -188,12 +206,13 @@ def reverse_rollout(programs: Programs, model, settings, state):
     mode by the discrete adjoint (module docstring); derivatives of a failed rollout are
     NaN.
 
-    Forward pass: called on arrays (not inside ``jit`` or ``vmap``) from the start state
-    with ``save_every == 1``, the compiled program of :func:`~simsoft_jax.run`
-    (``programs.driven``: no new compile), whose saved states give the backward pass
+    Forward pass: called on arrays (not inside ``jit`` or ``vmap``) with
+    ``save_every == 1`` and without stick-slip friction, from the start state or a given
+    one, the compiled program of :func:`~simsoft_jax.run` (``programs.driven``: no new
+    compile), whose saved states give the backward pass
     what it needs when no step was sub-stepped and none failed; otherwise
     ``programs.recorded``, which also keeps the steps' :class:`Records`. Backward pass: a
-    compiled program of its own (:func:`backward_program`), for the leaves of the model
+    compiled program of its own (:func:`stored_backward`), for the leaves of the model
     and settings that are differentiated."""
     return programs.plain(model, settings, state)
 
@@ -207,15 +226,15 @@ def _reverse_forward(programs: Programs, model, settings, state):
     model, settings, state = values(model), values(settings), values(state)
     concrete = not traced(model, settings, state)
     # the stick-slip anchors are not saved: their rollouts keep records
-    if (state is None and settings.save_every == 1 and concrete
-            and not stick_slip.active(model)):
-        traj = programs.driven(model, settings)
+    if settings.save_every == 1 and concrete and not stick_slip.active(model):
+        traj = programs.driven(model, settings, state)
         # a failed rollout has no derivative (NaN): its sub-steps need no record
         if not bool(traj.converged) or np.all(np.asarray(traj.substeps) == 1):
-            traj = jax.tree_util.tree_map(jnp.asarray, traj)
+            # device_put: no program per shape (jnp.asarray compiles one, ~25 ms each)
+            traj = jax.tree_util.tree_map(jax.device_put, traj)
             mu = (traj.multipliers if traj.multipliers is not None
-                  else jnp.zeros(traj.time.shape + (0,)))
-            return traj, (perturbed, model, settings, None,
+                  else np.zeros(traj.time.shape + (0,)))
+            return traj, (perturbed, model, settings, state,
                           (traj.R, traj.p, traj.v, mu, traj.converged), None)
     args = (model, settings, state)
     with (compile_cache.first_call("recorded rollout", args) if concrete
@@ -226,28 +245,55 @@ def _reverse_forward(programs: Programs, model, settings, state):
 
 def _reverse_backward(programs: Programs, residuals, traj_bar):
     perturbed, model, settings, state, saved, records = residuals
-    zero = lambda x: (jnp.zeros(x.aval.shape, x.aval.dtype)  # noqa: E731
+    zero = lambda x: (np.zeros(x.aval.shape, x.aval.dtype)  # noqa: E731
                       if isinstance(x, jax.custom_derivatives.SymbolicZero) else x)
     bar = (traj_bar.time, traj_bar.R, traj_bar.p, traj_bar.v, traj_bar.final)
     bar = jax.tree_util.tree_map(
         zero, bar, is_leaf=lambda x: isinstance(x, jax.custom_derivatives.SymbolicZero))
     args = (model, settings, state, saved, records, bar)
-    with (contextlib.nullcontext() if traced(args) else
-          compile_cache.first_call("rollout gradient", args, perturbed)):
+    if traced(args):
         return backward_program(programs, perturbed, *args)
+    return stored_backward(programs, perturbed, args)(*args)
 
 
 reverse_rollout.defvjp(_reverse_forward, _reverse_backward, symbolic_zeros=True)
 
 
-@jit(static_argnums=(0, 1))
-def backward_program(programs: Programs, perturbed: Perturbed, model, settings, state,
-                     saved, records, bar):
+def stored_backward(programs: Programs, perturbed: Perturbed, args):
+    """The compiled :func:`backward` of ``programs`` for the differentiated leaves
+    ``perturbed`` and arguments of the structure, shapes and types of ``args = (model,
+    settings, state, saved, records, bar)`` (arrays): compiled once per process (kept in
+    :data:`~simsoft_jax.solvers.programs.PROGRAMS`) and kept in the cache folder, so that a
+    later process loads it instead of tracing and compiling it again
+    (:func:`~simsoft_jax.solvers.compile_cache.compile_stored`; said on stderr when
+    compiled)."""
+    from ..programs import PROGRAMS    # it imports the dynamics
+    leaves, tree = jax.tree_util.tree_flatten(args)
+    key = ("rollout gradient", programs, perturbed, tree,
+           tuple((np.shape(x), np.result_type(x), bool(getattr(x, "weak_type", False)))
+                 for x in leaves))
+    if key not in PROGRAMS:
+        model, settings, state = args[:3]
+        floats, _, cotangent = differentiated((model, settings),
+                                              perturbed.model + perturbed.settings)
+        out_tree = jax.tree_util.tree_structure((*cotangent(floats), state))
+
+        def rollout_gradient(*a):
+            return backward(programs, perturbed, *a)
+
+        PROGRAMS[key] = compile_cache.compile_stored(jit(rollout_gradient), args, out_tree,
+                                                     "rollout gradient",
+                                                     variant=repr(perturbed))
+    return PROGRAMS[key]
+
+
+def backward(programs: Programs, perturbed: Perturbed, model, settings, state, saved,
+             records, bar):
     """The cotangents ``(model, settings, state)`` of :func:`reverse_rollout` (None at
     the leaves not differentiated) for the cotangents ``bar = (time, R, p, v, final)``
     of the trajectory (the rest has no derivative), from the steps' ``records`` or, when
     None, from the ``saved`` states ``(R, p, v, multipliers, converged)`` of every step
-    (:func:`records_from_states`). The start state (``state``, or
+    (:func:`reverse_whole_steps`). The start state (``state``, or
     :func:`~.rollout.initial_state` of the model when None) is differentiated here too."""
     time_bar, R_bar, p_bar, v_bar, final_bar = bar
     floats, rebuild, cotangent = differentiated((model, settings),
@@ -256,21 +302,29 @@ def backward_program(programs: Programs, perturbed: Perturbed, model, settings, 
         start, start_vjp = jax.vjp(lambda f: programs.initial(rebuild(f)[0]), floats)
     else:
         start = state
+    blocks = R_bar.shape[0] - 1
+    zeros = jnp.zeros((blocks,) + start.vd.shape)
+    anchor = (None if start.anchor is None else
+              jnp.zeros((blocks,) + start.anchor.shape))
+    saved_bar = State(R_bar[1:], p_bar[1:], v_bar[1:], zeros, zeros, time_bar[1:], anchor)
     if records is None:
         *saved, converged = saved
-        records = records_from_states((model, settings), start, *saved)
-        records = records._replace(ok=records.ok & converged)
-    zeros = jnp.zeros((records.count.shape[0],) + start.vd.shape)
-    anchor = (None if start.anchor is None else
-              jnp.zeros((records.count.shape[0],) + start.anchor.shape))
-    saved_bar = State(R_bar[1:], p_bar[1:], v_bar[1:], zeros, zeros, time_bar[1:], anchor)
-    s_bar, q_bar = reverse_steps(rebuild, floats, records, saved_bar, final_bar)
+        s_bar, q_bar = reverse_whole_steps(rebuild, floats, start, *saved, saved_bar,
+                                           final_bar)
+        ok = converged
+    else:
+        s_bar, q_bar = reverse_steps(rebuild, floats, records, saved_bar, final_bar)
+        ok = jnp.all(records.ok)
     s_bar = s_bar._replace(R=s_bar.R + R_bar[0], p=s_bar.p + p_bar[0],
                            v=s_bar.v + v_bar[0], t=s_bar.t + time_bar[0])
     if state is None:
         q_bar, state_bar = _add(q_bar, start_vjp(s_bar)[0]), None
     else:
         state_bar = s_bar
-    scale = jnp.where(jnp.all(records.ok), 1.0, jnp.nan)
+    scale = jnp.where(ok, 1.0, jnp.nan)
     poison = lambda t: jax.tree_util.tree_map(lambda x: x * scale, t)  # noqa: E731
     return (*cotangent(poison(q_bar)), poison(state_bar))
+
+
+backward_program = jit(backward, static_argnums=(0, 1))
+""":func:`backward` compiled with the enclosing computation (a gradient inside ``jit``)."""

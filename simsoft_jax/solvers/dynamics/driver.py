@@ -158,17 +158,23 @@ def _placeholder_carry(model: Model):
 
 
 def _assemble(model: Model, packed, layout, blocks: int, t_end: float, dt: float,
-              interrupted: bool, cut: bool = True) -> Trajectory:
+              interrupted: bool, cut: bool = True, state: State | None = None) -> Trajectory:
     """One host (NumPy) trajectory from the chunks' packed outputs (:func:`_unpack` with
-    ``layout``): the start state, then the saved state of each of the first ``blocks``
-    blocks; cut after a failure when ``cut`` (else the saved states after it repeat the
-    last good one, as :func:`~.rollout.simulate` returns them)."""
-    R0, p0, v0 = (np.asarray(x) for x in (model.R0, model.p0, model.v0))
+    ``layout``): the start state (``state``, else the model's at t = 0), then the saved
+    state of each of the first ``blocks`` blocks, the last at ``t_end`` after the start;
+    cut after a failure when ``cut`` (else the saved states after it repeat the last good
+    one, as :func:`~.rollout.simulate` returns them)."""
+    if state is None:
+        R0, p0, v0, t0 = model.R0, model.p0, model.v0, 0.0
+    else:
+        R0, p0, v0, t0 = state.R, state.p, state.v, float(state.t)
+    R0, p0, v0 = (np.asarray(x) for x in (R0, p0, v0))
+    t_end = t0 + t_end
     chunks = [_unpack(x, layout) for x in jax.device_get(packed)]
     final, (failed, status, cause, failed_at, residual) = chunks[-1][1:]
     t, R, p, v, its, subs, mu = (np.concatenate(x)[:blocks]
                                  for x in zip(*(out for out, _, _ in chunks)))
-    time_ = np.concatenate([[0.0], t])
+    time_ = np.concatenate([[t0], t])
     R, p, v = (np.concatenate([x0[None], x]) for x0, x in ((R0, R), (p0, p), (v0, v)))
     mu = np.concatenate([np.zeros((1,) + mu.shape[1:]), mu]) if mu.shape[-1] else None
     converged = not bool(failed)
@@ -191,7 +197,7 @@ def _assemble(model: Model, packed, layout, blocks: int, t_end: float, dt: float
 def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
             save_every: int = 1, progress=None, compiled=None,
             tolerance: float = 1e-10, max_iterations: int = 25, tangent: str = "closed_form",
-            max_halvings: int = 6, cut: bool = True):
+            max_halvings: int = 6, cut: bool = True, state: State | None = None):
     """Run from the start state to exactly ``t_end``, saving every ``save_every``-th state.
 
     Steps of ``dt`` (s); what is left before ``t_end`` when ``t_end/dt`` or ``save_every``
@@ -209,7 +215,9 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
     computed time (one before the first chunk is complete is raised: nothing was computed;
     one after a failure keeps the failure). ``compiled`` may be a dict used as a cache of
     compiled programs. Returns ``(Trajectory, compile_seconds)``; the trajectory holds
-    NumPy arrays (``final``: the state after the last computed block).
+    NumPy arrays (``final``: the state after the last computed block). ``state``: a
+    :class:`State` to start from instead (concrete arrays, without stick-slip anchors);
+    the run then lasts ``t_end`` from ``state.t``, with the same program.
     """
     if not 0.0 < dt <= t_end:
         raise ValueError(f"solver.dt: must be in (0, t_end = {t_end:g}], got {dt:g}")
@@ -237,11 +245,14 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
         compiled[key] = (program, carry, layout)
         compile_seconds = time.perf_counter() - start
     (program, carry, layout), outputs, reported = compiled[key], [], [0]
+    if state is not None:   # the first chunk starts from it (host arrays of the carry's types)
+        carry = jax.tree_util.tree_map(lambda x, like: np.asarray(x, like.dtype),
+                                       first_carry(model, state), carry)
     interrupted = False
     try:
         for k in range(n_chunks):
             carry, out = program(model, settings, carry, h[k * per_chunk:(k + 1) * per_chunk],
-                                 k == 0)
+                                 k == 0 and state is None)
             outputs.append((out, carry))
             # report the previous chunk while this one runs; stop after a failure
             if progress is not None and k > 0 and not _report(outputs[k - 1][1], reported,
@@ -260,7 +271,7 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
     kept = outputs[:done]
     blocks = min(len(kept) * per_chunk, int(np.count_nonzero(h)))
     traj = _assemble(model, [o for o, _ in kept], layout, blocks, t_end, dt,
-                     interrupted and not bool(kept[-1][1].failed), cut)
+                     interrupted and not bool(kept[-1][1].failed), cut, state)
     return traj, compile_seconds
 
 

@@ -139,8 +139,8 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
     failed rollout are NaN. ``True`` (or ``"reverse"``): reverse mode only (``jax.grad``,
     ``jax.vjp``, ``jax.jacrev``; ``jax.jvp`` raises JAX's TypeError about a custom_vjp)
     by the discrete adjoint (:func:`~.adjoint.reverse_rollout`): the forward pass is the
-    plain rollout (called on arrays from the start state with ``save_every == 1``, the
-    program of :func:`~simsoft_jax.run` itself: no new compile), the backward pass a
+    plain rollout (called on arrays with ``save_every == 1``, from the start state or a
+    given one, the program of :func:`~simsoft_jax.run` itself: no new compile), the backward pass a
     program of its own, a reverse scan over the steps with one transposed solve each
     (memory: the states of every step). ``"forward"``: each step carries its implicit
     derivative (:func:`~.newton.replay`; checkpointed scan, memory O(saved states)),
@@ -193,10 +193,12 @@ def simulate(model: Model, settings: DynamicSettings, state: State | None = None
     return traj
 
 
-def driven(model: Model, settings: DynamicSettings) -> Trajectory:
-    """The rollout from the start state by the program of :func:`~simsoft_jax.run` for
-    this structure (:func:`~.driver.rollout`, in chunks, kept in the cache folder), as
-    :func:`simulate` returns it (NumPy arrays, not cut after a failure)."""
+def driven(model: Model, settings: DynamicSettings, state: State | None = None
+           ) -> Trajectory:
+    """The rollout from ``state`` (default: the start state) by the program of
+    :func:`~simsoft_jax.run` for this structure (:func:`~.driver.rollout`, in chunks,
+    kept in the cache folder), as :func:`simulate` returns it (NumPy arrays, not cut
+    after a failure)."""
     from ..programs import PROGRAMS    # both import this module
     from .driver import rollout, with_arrays
     steps = settings.steps // settings.save_every * settings.save_every
@@ -204,7 +206,7 @@ def driven(model: Model, settings: DynamicSettings) -> Trajectory:
                    float(settings.rho_inf), settings.save_every, compiled=PROGRAMS,
                    tolerance=float(settings.tolerance),
                    max_iterations=int(settings.max_iterations), tangent=settings.tangent,
-                   max_halvings=settings.max_halvings, cut=False)[0]
+                   max_halvings=settings.max_halvings, cut=False, state=state)[0]
 
 
 def _chunked(model: Model, settings: DynamicSettings, state, differentiable: bool,
