@@ -63,7 +63,7 @@ def flat_continuation(model: Model, settings: StaticSettings) -> Equilibrium:
     ref = load_scale(model)
 
     def body(f: _FlatState) -> _FlatState:
-        lam_try, Rs, ps, ys, d = trial_level(f.cont)
+        lam_try, Rs, ps, ys, d = trial_level(model, f.cont)
         lam = jnp.where(f.starting, lam_try, f.lam_try)
         newton = newton_pass(model, settings, lam, ref,
                              select(f.starting, newton_start(Rs, ps, ys), f.newton),

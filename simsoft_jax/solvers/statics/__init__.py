@@ -24,7 +24,7 @@ import jax.numpy as jnp
 
 import numpy as np
 
-from .. import compile_cache
+from .. import compile_cache, swept_check
 from ...couplings import coupling
 from ...math import lie
 from ...math.xla import jit, traced
@@ -83,7 +83,7 @@ class ContinuationState(NamedTuple):
     kicked: jax.Array
 
 
-def trial_level(c: ContinuationState):
+def trial_level(model: Model, c: ContinuationState):
     """The next load level of the continuation, the secant prediction of its frames
     (moved by ``c.kick`` after a branch switch) and multipliers, and the last load
     step's increment ``d`` (N,6) (body-frame twists ``log(H_prev^-1 H)``, for
@@ -92,6 +92,9 @@ def trial_level(c: ContinuationState):
     lam_try = jnp.where(lam_try > 1.0 - 1e-9, 1.0, lam_try)  # no sliver step from round-off
     ratio = (lam_try - c.lam) / jnp.maximum(c.lam - c.lam_prev, 1e-300)
     ratio = jnp.where(c.accepted >= 1, ratio, 0.0)
+    # a prediction that would carry a rod through an obstacle or another rod is cut back
+    ratio = swept_check.cut_back(
+        model, c.p, lambda t: _secant(c.R, c.p, c.R_prev, c.p_prev, t, c.kick)[1], ratio)
     Rs, ps, d = _secant(c.R, c.p, c.R_prev, c.p_prev, ratio, c.kick)
     return lam_try, Rs, ps, c.y + ratio * (c.y - c.y_prev), d
 
@@ -190,7 +193,7 @@ def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
     ref = load_scale(model)
 
     def body(c: ContinuationState) -> ContinuationState:
-        lam_try, Rs, ps, ys, d = trial_level(c)
+        lam_try, Rs, ps, ys, d = trial_level(model, c)
         outcome = newton_solve(model, settings, Rs, ps, ys, lam_try, ref, (c.R, c.p))
         return after_newton(model, settings, c, d, lam_try, *outcome)
 

@@ -18,6 +18,7 @@ from ...model.model import Model
 from ..newton import (RUNNING, capped, coupled_step, factorize, iterate, ladder, residual_norm,
                       step_norm, step_size, weighted_norm)
 from ..status import Status
+from .. import swept_check
 from ...physics.terms import registry, tendons
 from .branch import symmetric_at_equilibrium
 from .settings import StaticSettings
@@ -175,6 +176,9 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState
     dx = jnp.where(accept, dx, c.dx)
     dy = jnp.where(accept, dy, c.dy)
     step = jnp.where(accept, 1.0, 0.5 * c.step)
+    # never through an obstacle or another rod: the step is cut back (swept_check)
+    step = swept_check.cut_back(model, base_p,
+                                lambda t: update_frames(base_R, base_p, t * dx)[1], step)
     trial_R, trial_p = update_frames(base_R, base_p, step * dx)
     trial_y = base_y + step * dy
     iterations = c.iterations + accept
