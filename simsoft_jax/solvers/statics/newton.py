@@ -8,6 +8,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ...couplings import coupling, tendon_lengths
 from ...math import lie
@@ -86,6 +87,52 @@ def tension_scale(model: Model, ref):
     return jnp.sqrt(ref ** 2 + tendons.load_scale(model.replace(tendon_tension=only)))
 
 
+SETTLING = 0.1   # the settling springs' stiffness, relative (settling_force)
+
+
+def settling_force(model: Model, R, p, previous, ref):
+    """The settling regularization of the rods whose supports leave rigid motions free
+    (``Structure.settling``): a spring per node of such a rod to its frame ``H_0`` at the
+    last accepted load level ``previous`` (proximal-point / pseudo-time continuation):
+    energy ``sum_i 1/2 xi_i . (k xi_i)`` with ``xi_i = log(H_0i^-1 H_i)`` (N,6) (body
+    twists), ``k = SETTLING ref / (sqrt(n) h)`` on the translations (N/m) and ``k h^2`` on
+    the rotations (N m/rad), ``ref`` the load scale (N, :func:`load_scale`), ``n`` the
+    settling nodes, ``h`` the characteristic length. It makes the tangent regular where
+    contact, friction or the loads hold those motions only once the rod has moved, and it
+    vanishes at convergence: the continuation repeats the full-load level, each one
+    sprung to the one before, until the springs' force is below the tolerance
+    (:func:`settled`). Returns the residual-side force ``k xi`` (N,6) (held dofs and
+    other rods' nodes zero) and the stiffness diagonal ``k`` (N,6) added to the tangent
+    (exact at ``xi = 0``)."""
+    h = model.char_length
+    mask = model.structure.settling_mask()
+    k = SETTLING * ref / (np.sqrt(mask.sum()) * h)
+    k = (jnp.asarray(mask)[:, None] * model.structure.free_mask()
+         * jnp.concatenate([jnp.full(3, 1.0), jnp.full(3, h * h)]) * k)
+    xi = jax.vmap(lambda Rq, pq, Ri, pi: lie.log_se3(lie.relative_pose(Rq, pq, Ri, pi)))(
+        previous[0], previous[1], R, p)
+    return k * xi, k
+
+
+def settled(model: Model, settings: StaticSettings, R, p, previous, ref):
+    """Whether the settling springs' force (:func:`settling_force`) at (R, p) against
+    ``previous`` is below ``tolerance`` times the load scale ``ref`` (True without
+    settling rods). With quasi-static friction, also where no node of a settling rod
+    moved farther than the slip scale ``u_s`` (``[contact] slip_displacement``) since
+    ``previous``: the regularized Coulomb law carries a force below its limit with a slip
+    of order ``u_s`` at every level (:mod:`simsoft_jax.physics.terms.static_friction`), a
+    creep at the resolution of the law, not a motion the friction fails to hold."""
+    if not model.structure.settling:
+        return jnp.array(True)
+    force, _ = settling_force(model, R, p, previous, ref)
+    out = weighted_norm(model, force) <= settings.tolerance * ref
+    if model.obstacle_friction is not None:
+        mask = model.structure.settling_mask() > 0
+        moved = jnp.max(jnp.linalg.norm((p - previous[1])[mask], axis=1))
+        out = out | (moved <= jnp.max(model.slip_displacement))
+    return out
+
+
 def update_frames(R, p, dx):
     return jax.vmap(lie.compose_exp)(R, p, dx)
 
@@ -151,6 +198,10 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState
     ref = tension_scale(level, ref)
     tol = relative * ref
     r, tangent = residual_and_tangent(level, c.R, c.p, lam, settings.tangent, previous)
+    if model.structure.settling:   # rods their supports leave free: settling springs
+        force, k = settling_force(model, c.R, c.p, previous, ref)
+        r = r + force
+        tangent = (tangent[0] + jax.vmap(jnp.diag)(k),) + tuple(tangent[1:])
     system = coupling.couple(level, c.R, c.p, c.y, r, tangent)
     res = residual_norm(level, system, ref)
     held = True
