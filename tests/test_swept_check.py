@@ -82,3 +82,38 @@ def test_models_without_contact_are_not_checked():
     model = build_model(Scene.from_dict(scene))
     assert not swept_check.checked(model)
     assert swept_check.cut_back(model, model.p0, None, 1.0) == 1.0
+
+
+@pytest.mark.slow     # compiling the rod-contact dynamics: ~30 s on a loaded 2-core machine
+def test_heavy_rope_dropped_dynamically_with_a_large_step_rests_on_top():
+    """Two ropes pinned at both ends, crossing at right angles, the upper one (8 times
+    denser, so it sags twice as far) starting 4 r above the lower one, under gravity with
+    mass damping, stepped at dt = 0.1 s (ten steps per second, against a sag period of
+    ~0.4 s): the upper one lands on the lower and stays on top, the centrelines one
+    diameter apart at the crossing (less the penetration of the penalty), from the first
+    step after the landing on."""
+    import simsoft_jax as sj
+    r, length, n = 0.005, 0.4, 20
+
+    def rope(name, along_y, z, density):
+        return {"name": name, "elements": n,
+                "material": {"E": 1e6, "G": 1e6 / 3, "density": density,
+                             "mass_damping": 10.0},
+                "section": {"shape": "circle", "diameter": 2 * r},
+                "geometry": {"kind": "straight", "length": length},
+                "base": {"position": [0.0, -length / 2, z] if along_y else
+                         [-length / 2, 0.0, z],
+                         "rotation": [0.0, 0.0, np.pi / 2 if along_y else 0.0]}}
+
+    scene = {"solver": {"kind": "dynamic", "t_end": 1.0, "dt": 0.1, "rho_inf": 0.0},
+             "gravity": {"vector": [0, 0, -9.81]},
+             "rods": [rope("lower", False, 0.0, 1000.0), rope("upper", True, 4 * r, 8000.0)],
+             "constraints": [{"kind": "pin", "rod": k, "node": i}
+                             for k in ("lower", "upper") for i in (0, -1)],
+             "contact": {"self": True}}
+    result = sj.run(scene)
+    assert result.converged, result.message
+    apart = (result.positions("upper")[:, n // 2, 2]
+             - result.positions("lower")[:, n // 2, 2]) / (2 * r)
+    assert np.all(apart > 0.98)                 # never closer, never through
+    np.testing.assert_allclose(apart[2:], 1.0, atol=0.01)   # resting on top
