@@ -151,7 +151,7 @@ def test_rope_over_a_frictionless_drum_with_equal_weights_is_symmetric():
     np.testing.assert_allclose(top, weight + W_LINE * (LH + RW) - EI / (2 * RW**2), rtol=1e-3)
 
 
-@pytest.mark.slow     # ~600 repeated full-load levels until the friction's creep stops
+@pytest.mark.slow     # compiling the contact-with-friction solver: ~40 s on a loaded machine
 def test_rope_over_a_rough_drum_within_the_capstan_limit_holds():
     mu, w1, w2 = 0.3, 1.0, 0.5
     T1, T2 = w1 + W_LINE * LH, w2 + W_LINE * LH      # where the rope leaves the drum

@@ -63,7 +63,9 @@ class ContinuationState(NamedTuple):
     the next trial's prediction (zero but right after a switch); kicked: a switch was
     tried since the last accepted level (:mod:`.branch`); settled: the last accepted
     level is at the full loads and its settling springs' force is below the tolerance
-    (:func:`.newton.settled`; True from the start without settling rods)."""
+    (:func:`.newton.settled`; True from the start without settling rods); friction_R,
+    friction_p: the reference of the quasi-static friction at the full loads, the last
+    accepted level below them (:func:`friction_reference`)."""
     R: jax.Array
     p: jax.Array
     R_prev: jax.Array
@@ -84,6 +86,18 @@ class ContinuationState(NamedTuple):
     kick: jax.Array
     kicked: jax.Array
     settled: jax.Array
+    friction_R: jax.Array
+    friction_p: jax.Array
+
+
+def friction_reference(c: ContinuationState):
+    """The frames (R, p) the quasi-static friction of the next level slips from: the last
+    accepted level, but at the full loads the last one below them, so that the repeated
+    full-load levels of the settling (:func:`.newton.settling_force`) do not let the
+    friction creep (its regularized law carries a force with a slip of order ``u_s`` at
+    every level it is measured from)."""
+    below = c.lam < 1.0
+    return jnp.where(below, c.R, c.friction_R), jnp.where(below, c.p, c.friction_p)
 
 
 def trial_level(model: Model, c: ContinuationState):
@@ -136,7 +150,9 @@ def after_newton(model: Model, settings: StaticSettings, c: ContinuationState, d
         stable=keep(stable_now, c.stable), kick=jnp.where(switch, kick, 0.0),
         kicked=~ok & (c.kicked | switch),
         settled=keep((lam_try >= 1.0) & settled(model, settings, R, p, (c.R, c.p),
-                                                load_scale(model)), c.settled))
+                                                load_scale(model)), c.settled),
+        friction_R=jnp.where(ok & (c.lam < 1.0), c.R, c.friction_R),
+        friction_p=jnp.where(ok & (c.lam < 1.0), c.p, c.friction_p))
 
 
 def _watch(model: Model, c: ContinuationState, d, converged, tangent, positive):
@@ -182,7 +198,8 @@ def continuation_start(model: Model, settings: StaticSettings) -> ContinuationSt
         residual=jnp.array(jnp.inf), cause=jnp.array(int(Status.NOT_RUN)),
         tangent=no_tangent(model.p0), stable=jnp.array(False),
         kick=jnp.zeros(model.p0.shape[:1] + (6,), model.p0.dtype), kicked=jnp.array(False),
-        settled=jnp.array(not model.structure.settling))
+        settled=jnp.array(not model.structure.settling),
+        friction_R=model.R0, friction_p=model.p0)
 
 
 def continuation_result(settings: StaticSettings, c: ContinuationState) -> Equilibrium:
@@ -195,7 +212,7 @@ def continuation_result(settings: StaticSettings, c: ContinuationState) -> Equil
                                            Status.MAX_ATTEMPTS, Status.STEP_TOO_SMALL)))
     return Equilibrium(c.R, c.p, converged, c.iterations, c.residual, c.lam, c.accepted,
                        c.failures, status, c.cause, c.y if c.y.size else None,
-                       previous=(c.R_prev, c.p_prev), tangent=c.tangent,
+                       previous=(c.friction_R, c.friction_p), tangent=c.tangent,
                        tangent_positive=c.stable)
 
 
@@ -205,7 +222,8 @@ def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
 
     def body(c: ContinuationState) -> ContinuationState:
         lam_try, Rs, ps, ys, d = trial_level(model, c)
-        outcome = newton_solve(model, settings, Rs, ps, ys, lam_try, ref, (c.R, c.p))
+        outcome = newton_solve(model, settings, Rs, ps, ys, lam_try, ref,
+                               friction_reference(c), (c.R, c.p))
         return after_newton(model, settings, c, d, lam_try, *outcome)
 
     c = jax.lax.while_loop(lambda c: continuing(settings, c), body,

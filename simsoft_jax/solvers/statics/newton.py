@@ -117,20 +117,11 @@ def settling_force(model: Model, R, p, previous, ref):
 def settled(model: Model, settings: StaticSettings, R, p, previous, ref):
     """Whether the settling springs' force (:func:`settling_force`) at (R, p) against
     ``previous`` is below ``tolerance`` times the load scale ``ref`` (True without
-    settling rods). With quasi-static friction, also where no node of a settling rod
-    moved farther than the slip scale ``u_s`` (``[contact] slip_displacement``) since
-    ``previous``: the regularized Coulomb law carries a force below its limit with a slip
-    of order ``u_s`` at every level (:mod:`simsoft_jax.physics.terms.static_friction`), a
-    creep at the resolution of the law, not a motion the friction fails to hold."""
+    settling rods)."""
     if not model.structure.settling:
         return jnp.array(True)
     force, _ = settling_force(model, R, p, previous, ref)
-    out = weighted_norm(model, force) <= settings.tolerance * ref
-    if model.obstacle_friction is not None:
-        mask = model.structure.settling_mask() > 0
-        moved = jnp.max(jnp.linalg.norm((p - previous[1])[mask], axis=1))
-        out = out | (moved <= jnp.max(model.slip_displacement))
-    return out
+    return weighted_norm(model, force) <= settings.tolerance * ref
 
 
 def update_frames(R, p, dx):
@@ -184,11 +175,13 @@ def max_load_step(model: Model, settings: StaticSettings):
 
 
 def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState,
-                previous=None) -> NewtonState:
+                previous=None, settle=None) -> NewtonState:
     """One pass of :func:`newton_solve` at load level ``lam`` (load scale ``ref``): residual,
     tangent and Newton step at the trial state, then accept or backtrack (see there);
-    ``previous``: the frames (R, p) of the last converged level (the reference of the
-    quasi-static friction). With displacement-controlled tendons the system is that of
+    ``previous``: the frames (R, p) of the reference of the quasi-static friction (the
+    last converged level below the full loads); ``settle``: those of the settling springs
+    (:func:`settling_force`; the last converged level; default ``previous``). With
+    displacement-controlled tendons the system is that of
     :func:`at_level`, the load scale holds their tensions (:func:`tension_scale`) and a
     converged pass also holds their lengths: the couplings' gaps / char_length
     (:func:`simsoft_jax.couplings.coupling.violation`) below the relative tolerance (the
@@ -199,7 +192,7 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState
     tol = relative * ref
     r, tangent = residual_and_tangent(level, c.R, c.p, lam, settings.tangent, previous)
     if model.structure.settling:   # rods their supports leave free: settling springs
-        force, k = settling_force(model, c.R, c.p, previous, ref)
+        force, k = settling_force(model, c.R, c.p, previous if settle is None else settle, ref)
         r = r + force
         tangent = (tangent[0] + jax.vmap(jnp.diag)(k),) + tuple(tangent[1:])
     system = coupling.couple(level, c.R, c.p, c.y, r, tangent)
@@ -282,7 +275,8 @@ def newton_outcome(c: NewtonState):
             c.tangent, c.positive)
 
 
-def newton_solve(model: Model, settings: StaticSettings, R, p, y, lam, ref, previous=None):
+def newton_solve(model: Model, settings: StaticSettings, R, p, y, lam, ref, previous=None,
+                 settle=None):
     """Newton iterations at load level ``lam`` from (R, p) (spec S71) with damping.
 
     One loop evaluates residual, tangent and Newton step at a trial state. The trial is
@@ -295,9 +289,8 @@ def newton_solve(model: Model, settings: StaticSettings, R, p, y, lam, ref, prev
     against ``max_iterations``) or backtracks (at most ``line_search_steps`` in a row), so
     the loop always ends (:func:`newton_pass`). Returns (R, p, y, Newton steps, residual
     norm, status code, tangent blocks at (R, p), their positive definiteness as
-    :class:`NewtonState` says). ``previous``: as in
-    :func:`newton_pass`.
+    :class:`NewtonState` says). ``previous``, ``settle``: as in :func:`newton_pass`.
     """
-    c = iterate(lambda c: newton_pass(model, settings, lam, ref, c, previous),
+    c = iterate(lambda c: newton_pass(model, settings, lam, ref, c, previous, settle),
                 newton_start(R, p, y))
     return newton_outcome(c)
