@@ -84,10 +84,22 @@ class Structure:
     contact_pairs: int = 0        # element pairs the rod-rod narrow phase holds
     friction_law: str = "regularized"   # dynamic friction ([contact] friction_law):
                                   # "regularized" | "stick_slip" (anchors in the State)
+    settling: tuple = ()          # (rod name, free motions in words) of the rods of a
+                                  # static scene that their supports leave free to move
+                                  # (held by the solve's settling regularization)
 
     @property
     def n_elements(self) -> int:
         return len(self.element_nodes)
+
+    def settling_mask(self) -> np.ndarray:
+        """(n_nodes,) floats: 1 on the nodes of the rods in ``settling``, else 0."""
+        mask = np.zeros(self.n_nodes)
+        names = {name for name, _ in self.settling}
+        for info in self.rods:
+            if info.name in names:
+                mask[info.first_node:info.first_node + info.nodes] = 1.0
+        return mask
 
     def free_mask(self):
         """Free-dof mask (n_nodes, 6) as a float64 array (1 free, 0 held)."""
@@ -320,19 +332,20 @@ def _reference_twists(R, p):
     return geom.log_se3_np(Rt @ R[1:], np.einsum("nij,nj->ni", Rt, p[1:] - p[:-1]))
 
 
-def _held_by_joints(scene, frames, rods) -> set:
-    """Names of the rods of a static scene that only their joints hold against rigid
-    motion (the others are held by their own supports: checked while the scene is read,
-    :mod:`simsoft_jax.scene.scene_start`); ``frames = (R0, p0)`` the start frames (N,3,3),
-    (N,3). A mechanism left free fails the solve, with a status."""
+def _unheld(scene, frames, rods) -> dict:
+    """``{rod name: words}`` of the rods of a static scene that their own supports do not
+    hold against every rigid motion, with the motions left free in words
+    (:func:`~simsoft_jax.scene.scene_start.unheld_rods`); ``frames = (R0, p0)`` the start
+    frames (N,3,3), (N,3). Those with joints may be held through them (a mechanism left
+    free fails the solve, with a status); the others are held by the static solve's
+    settling regularization (:func:`simsoft_jax.solvers.statics.newton.settling_force`)."""
     R0, p0 = frames
 
     def frames_of(rod, nodes):
         first = rods[rod.name].first_node
         return {k: (R0[first + k], p0[first + k]) for k in nodes}
 
-    return set(unheld_rods(scene.rods, scene.constraints, frames_of)) & jointed_rods(
-        getattr(scene, "joints", ()))
+    return unheld_rods(scene.rods, scene.constraints, frames_of)
 
 
 def _initial_velocities(scene, rods, R0, p0):
@@ -412,8 +425,10 @@ def build_model(scene, device: bool = True) -> Model:
         element_offset += rod.elements
     by_name = {r.name: r for r in rods}
     R0, p0 = np.concatenate(R0), np.concatenate(p0)
-    held_by_joints = (_held_by_joints(scene, (R0, p0), by_name)
-                      if scene.solver.kind == "static" else set())
+    unheld = _unheld(scene, (R0, p0), by_name) if scene.solver.kind == "static" else {}
+    jointed = jointed_rods(getattr(scene, "joints", ()))
+    held_by_joints = set(unheld) & jointed
+    settling = tuple((name, words) for name, words in unheld.items() if name not in jointed)
     joints = joint_layout(scene, by_name, R0, p0, held_by_joints)
     R0, p0 = np.concatenate([R0, joints.R]), np.concatenate([p0, joints.p])
     n_nodes, n_elements = len(p0), element_offset
@@ -486,6 +501,7 @@ def build_model(scene, device: bool = True) -> Model:
         self_contact=self_contact,
         contact_pairs=scene.contact.max_pairs if self_contact else 0,
         friction_law=scene.contact.friction_law if scene.contact else "regularized",
+        settling=settling,
     )
     arrays = dict(
         R0=R0, p0=p0, d0=d0, length=length, stiffness=K,

@@ -28,6 +28,7 @@ from ..atomic_files import write_atomic
 from .output import count_nonfinite, finite_or_none, write_json
 from ..solvers.programs import PROGRAMS, compiled_static_solver
 from ..scene.scene import Scene
+from ..scene.supports import advice
 from ..solvers.statics import as_traced, settings_from_scene
 from ..solvers.status import Status
 
@@ -116,6 +117,10 @@ class Result:
         self.converged = bool(raw.converged)
         self.status = Status(int(raw.status)).code
         self.message = raw.message()
+        if self.status == Status.UNRESTRAINED.code:   # name the motions left free
+            self.message += "".join(
+                f"; rod {name!r}: its supports leave {words} (to hold it: {advice(words)})"
+                for name, words in model.structure.settling)
         self.newton_iterations = int(np.sum(raw.iterations))
         self.wall_time_s = wall_time_s
         self.compile_time_s = compile_time_s

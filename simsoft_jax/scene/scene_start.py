@@ -2,8 +2,6 @@
 JAX), so that ``simsoft-jax validate`` refuses what a solve would refuse:
 
 * every start frame is finite (``initial.points`` must not fold back on themselves);
-* a static scene holds every rod against rigid motion (:mod:`simsoft_jax.scene.supports`),
-  directly or, for a rod with joints, through them;
 * the two joint points of a joint coincide, and a weld does not join two nodes that
   clamps or drives already hold;
 * a tendon crossing a weld has its routing points on both sides at the same place;
@@ -16,26 +14,28 @@ from __future__ import annotations
 
 import numpy as np
 
-from .key_checks import fail, index, join, readable
+from .key_checks import fail, index, join
 from .scene_contact import check_contact_radius
-from .scene_mechanisms import jointed_rods
 from .start_frames import initial_frames, world_frames
-from .supports import stress_free_frames, unheld_message
+from .supports import free_words, stress_free_frames
 
 GAP_TOLERANCE = 1e-9   # relative to max(1 m, |point|)
 
 
 def unheld_rods(rods, constraints, frames_of) -> dict:
-    """``{rod name: message}`` of the rods (RodSpecs, scene order) that their own
-    constraints do not hold against every rigid motion; ``frames_of(rod, nodes)`` gives
-    the start frames ``{node: (R, p)}`` (world) of a rod's nodes."""
+    """``{rod name: words}`` of the rods (RodSpecs, scene order) that their own
+    constraints do not hold against every rigid motion, with the motions they leave
+    free in words (:func:`~simsoft_jax.scene.supports.free_words`); ``frames_of(rod,
+    nodes)`` gives the start frames ``{node: (R, p)}`` (world) of a rod's nodes. A static
+    solve holds them by a regularization that vanishes at convergence, and says which
+    motion nothing held (:mod:`simsoft_jax.solvers.statics`)."""
     out = {}
-    for i, rod in enumerate(rods):
+    for rod in rods:
         held = [c for c in constraints if c.rod == rod.name]
-        message = unheld_message(rod.name, i, held, frames_of(rod, {c.node for c in held}),
-                                 rod.geometry.arc_length)
-        if message:
-            out[rod.name] = message
+        words = free_words(held, frames_of(rod, {c.node for c in held}),
+                           rod.geometry.arc_length)
+        if words:
+            out[rod.name] = words
     return out
 
 
@@ -127,10 +127,5 @@ def check_start(scene) -> None:
         R, p = started[rod.name]
         return {k: (R[k], p[k]) for k in nodes}
 
-    if scene.solver.kind == "static":
-        jointed = jointed_rods(joints)
-        for name, message in unheld_rods(rods.values(), constraints, frames_of).items():
-            if name not in jointed:   # a rod with joints may be held through them
-                raise ValueError(readable(message))
     _check_joints(rods, getattr(scene, "bodies", ()), joints, constraints, frames_of)
     _check_crossings(rods, getattr(scene, "tendons", ()), frames_of)

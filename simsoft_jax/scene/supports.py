@@ -1,7 +1,8 @@
 """Which rigid motions a rod's supports leave free (plain NumPy, no JAX).
 
-A static solve needs every rod held: otherwise its tangent is singular and Newton's first
-step is not finite. The check is linear algebra on the rigid motions of one rod, twists
+Without supports that hold every rigid motion, a rod's static tangent is singular where
+nothing else holds it (Newton's step is not finite). The check is linear algebra on the
+rigid motions of one rod, twists
 ``(v, w)`` (m/s, rad/s, world frame, about a reference point): node ``i`` at ``p_i`` moves
 by ``u_i = v + w x p_i`` and turns by ``w``. Each support holds some components of these:
 
@@ -12,7 +13,11 @@ by ``u_i = v + w x p_i`` and turns by ``w``. Each support holds some components 
 * pin: ``R_i^T u_i``.
 
 The rigid motions that no support holds are the null space of these rows; any left is
-reported in words (a translation along a direction, or a rotation about a line).
+reported in words (a translation along a direction, or a rotation about a line). A
+static solve holds such a rod by a regularization that vanishes at convergence
+(:func:`simsoft_jax.solvers.statics.newton.settling_force`): contact, friction or the loads
+may hold what the supports do not; where nothing does, the solve says which motion
+was left free (status ``unrestrained``).
 """
 from __future__ import annotations
 
@@ -76,28 +81,30 @@ def describe(twist, centre, length) -> str:
             f"{_vec(w / np.linalg.norm(w))}")
 
 
-def unheld_message(rod, index, constraints, frames, length) -> str | None:
-    """``None`` when the rod's supports hold every rigid motion, else the error text."""
+def free_words(constraints, frames, length) -> str | None:
+    """``None`` when a rod's supports hold every rigid motion, else what they leave free
+    in words ("no support", or "one rigid motion, a rotation about ...");
+    arguments as :func:`free_motions`."""
     basis, centre = free_motions(constraints, frames, length)
     if not len(basis):
         return None
-    head = f"constraints: rod {rod!r} (rods[{index}]) "
     if len(basis) == 6:
-        return (head + "has no support; a static solve needs it held against rigid "
-                "motion (a clamp, or pins and hinges that hold every motion)")
+        return "no support"
     count = "one rigid motion," if len(basis) == 1 else f"{len(basis)} rigid motions, e.g."
-    motion = describe(basis[0], centre, length)
-    if len(basis) > 1:
-        advice = "add supports: a clamp, or pins and hinges at more nodes"
-    elif motion.startswith("a translation"):
-        advice = ("hold the position of a node along that direction (a pin, a clamp, or a "
-                  "drive without slides_along)")
-    else:
-        advice = ("replace a pin by a hinge whose axis is not along that line (kind = "
-                  "\"hinge\", e.g. axis = \"y\" or \"z\" where the rod runs along local "
-                  "x), or by a clamp")
-    return (head + f"is free to move as a rigid body: its supports leave {count} "
-            f"{motion}, unrestrained (a static solve is singular then); {advice}")
+    return f"{count} {describe(basis[0], centre, length)}"
+
+
+def advice(words: str) -> str:
+    """How to hold the free motions ``words`` of :func:`free_words` by supports."""
+    if words == "no support":
+        return "a clamp, or pins and hinges that hold every motion"
+    if not words.startswith("one"):
+        return "add supports: a clamp, or pins and hinges at more nodes"
+    if "translation" in words:
+        return ("hold the position of a node along that direction (a pin, a clamp, or a "
+                "drive without slides_along)")
+    return ("replace a pin by a hinge whose axis is not along that line (kind = \"hinge\", "
+            "e.g. axis = \"y\" or \"z\" where the rod runs along local x), or by a clamp")
 
 
 def stress_free_frames(rod, nodes):

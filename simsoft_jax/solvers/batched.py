@@ -36,7 +36,8 @@ from jax.custom_batching import custom_vmap
 
 from ..model.model import Model
 from .statics import (Equilibrium, StaticSettings, after_newton, continuation_result,
-                      continuation_start, continuing, equilibrium, load_scale,
+                      continuation_start, continuing, equilibrium, friction_reference,
+                      load_scale,
                       newton_outcome, newton_pass, newton_start, trial_level)
 from .statics import ContinuationState, NewtonState, RUNNING
 
@@ -63,11 +64,11 @@ def flat_continuation(model: Model, settings: StaticSettings) -> Equilibrium:
     ref = load_scale(model)
 
     def body(f: _FlatState) -> _FlatState:
-        lam_try, Rs, ps, ys, d = trial_level(f.cont)
+        lam_try, Rs, ps, ys, d = trial_level(model, f.cont)
         lam = jnp.where(f.starting, lam_try, f.lam_try)
         newton = newton_pass(model, settings, lam, ref,
                              select(f.starting, newton_start(Rs, ps, ys), f.newton),
-                             (f.cont.R, f.cont.p))
+                             friction_reference(f.cont), (f.cont.R, f.cont.p))
         ended = newton.status != RUNNING
         cont = select(ended, after_newton(model, settings, f.cont, d, lam,
                                           *newton_outcome(newton)), f.cont)

@@ -27,6 +27,8 @@ class Status(enum.IntEnum):
     INTERRUPTED = 7      # a dynamic run's host driver stopped on KeyboardInterrupt (Ctrl-C)
     #                      between chunks (a static solve interrupted returns no result)
     CONTACT_UNRESOLVED = 8  # a dynamic step hit an obstacle in less than a few steps' time
+    UNRESTRAINED = 9     # a static solve at full load kept moving along a motion that the
+    #                      supports leave free and nothing else restrains
 
     @property
     def code(self) -> str:
@@ -47,6 +49,9 @@ _REASONS = {
     Status.CONTACT_UNRESOLVED: "an impact on an obstacle lasts less than ten steps (contact "
                                 "time pi sqrt(rhoA/k) too short for the step: soften the "
                                 "contact stiffness or shorten dt)",
+    Status.UNRESTRAINED: "at the full loads the rods kept moving along a motion their "
+                         "supports leave free, which contact, friction and the loads do "
+                         "not restrain",
     Status.INTERRUPTED: "interrupted (KeyboardInterrupt, Ctrl-C); the states computed "
                         "before are kept",
 }

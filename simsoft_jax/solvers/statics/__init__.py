@@ -24,7 +24,7 @@ import jax.numpy as jnp
 
 import numpy as np
 
-from .. import compile_cache
+from .. import compile_cache, swept_check
 from ...couplings import coupling
 from ...math import lie
 from ...math.xla import jit, traced
@@ -38,7 +38,7 @@ from ..status import Status, raise_if_failed
 from . import branch
 from .newton import (NewtonState, newton_solve, no_tangent, update_frames,  # noqa: F401
                      at_level, level_tolerance, load_scale, max_load_step, newton_outcome,
-                     newton_pass, newton_start)
+                     newton_pass, newton_start, settled, settling_force)
 from .settings import Equilibrium, StaticSettings, as_traced, settings_from_scene  # noqa: F401
 
 
@@ -61,7 +61,11 @@ class ContinuationState(NamedTuple):
     accepted); stable: the tangent at the last accepted level is positive definite (False
     before one is accepted: not known); kick: the branch-switching move (N,6) added to
     the next trial's prediction (zero but right after a switch); kicked: a switch was
-    tried since the last accepted level (:mod:`.branch`)."""
+    tried since the last accepted level (:mod:`.branch`); settled: the last accepted
+    level is at the full loads and its settling springs' force is below the tolerance
+    (:func:`.newton.settled`; True from the start without settling rods); friction_R,
+    friction_p: the reference of the quasi-static friction at the full loads, the last
+    accepted level below them (:func:`friction_reference`)."""
     R: jax.Array
     p: jax.Array
     R_prev: jax.Array
@@ -81,9 +85,22 @@ class ContinuationState(NamedTuple):
     stable: jax.Array
     kick: jax.Array
     kicked: jax.Array
+    settled: jax.Array
+    friction_R: jax.Array
+    friction_p: jax.Array
 
 
-def trial_level(c: ContinuationState):
+def friction_reference(c: ContinuationState):
+    """The frames (R, p) the quasi-static friction of the next level slips from: the last
+    accepted level, but at the full loads the last one below them, so that the repeated
+    full-load levels of the settling (:func:`.newton.settling_force`) do not let the
+    friction creep (its regularized law carries a force with a slip of order ``u_s`` at
+    every level it is measured from)."""
+    below = c.lam < 1.0
+    return jnp.where(below, c.R, c.friction_R), jnp.where(below, c.p, c.friction_p)
+
+
+def trial_level(model: Model, c: ContinuationState):
     """The next load level of the continuation, the secant prediction of its frames
     (moved by ``c.kick`` after a branch switch) and multipliers, and the last load
     step's increment ``d`` (N,6) (body-frame twists ``log(H_prev^-1 H)``, for
@@ -92,6 +109,9 @@ def trial_level(c: ContinuationState):
     lam_try = jnp.where(lam_try > 1.0 - 1e-9, 1.0, lam_try)  # no sliver step from round-off
     ratio = (lam_try - c.lam) / jnp.maximum(c.lam - c.lam_prev, 1e-300)
     ratio = jnp.where(c.accepted >= 1, ratio, 0.0)
+    # a prediction that would carry a rod through an obstacle or another rod is cut back
+    ratio = swept_check.cut_back(
+        model, c.p, lambda t: _secant(c.R, c.p, c.R_prev, c.p_prev, t, c.kick)[1], ratio)
     Rs, ps, d = _secant(c.R, c.p, c.R_prev, c.p_prev, ratio, c.kick)
     return lam_try, Rs, ps, c.y + ratio * (c.y - c.y_prev), d
 
@@ -105,7 +125,9 @@ def after_newton(model: Model, settings: StaticSettings, c: ContinuationState, d
     (:mod:`.branch`): the increment is halved, and at its smallest the level is tried
     once more from a prediction moved toward the stable branch (along the critical mode,
     to the side of the last load step's increment ``d`` (N,6) of :func:`trial_level`);
-    after that try it is accepted. The other arguments are :func:`newton_outcome`'s."""
+    after that try it is accepted. With settling rods (:func:`.newton.settling_force`) the
+    full-load level is repeated, each one sprung to the one before, until one is
+    settled (:func:`.newton.settled`). The other arguments are :func:`newton_outcome`'s."""
     converged = status == Status.CONVERGED
     stable_now, lost, kick = _watch(model, c, d, converged, tangent, positive)
     dlam_min = settings.min_step_fraction / settings.load_steps
@@ -126,7 +148,11 @@ def after_newton(model: Model, settings: StaticSettings, c: ContinuationState, d
         residual=keep(res, c.residual), cause=jnp.where(ok | converged, c.cause, status),
         tangent=jax.tree_util.tree_map(keep, tangent, c.tangent),
         stable=keep(stable_now, c.stable), kick=jnp.where(switch, kick, 0.0),
-        kicked=~ok & (c.kicked | switch))
+        kicked=~ok & (c.kicked | switch),
+        settled=keep((lam_try >= 1.0) & settled(model, settings, R, p, (c.R, c.p),
+                                                load_scale(model)), c.settled),
+        friction_R=jnp.where(ok & (c.lam < 1.0), c.R, c.friction_R),
+        friction_p=jnp.where(ok & (c.lam < 1.0), c.p, c.friction_p))
 
 
 def _watch(model: Model, c: ContinuationState, d, converged, tangent, positive):
@@ -153,10 +179,11 @@ def _watch(model: Model, c: ContinuationState, d, converged, tangent, positive):
 
 
 def continuing(settings: StaticSettings, c: ContinuationState):
-    """Whether the continuation goes on: loads not reached, increment above its minimum
-    (``min_step_fraction / load_steps``), attempts left."""
+    """Whether the continuation goes on: loads not reached or not settled, increment
+    above its minimum (``min_step_fraction / load_steps``), attempts left."""
     dlam_min = (1.0 / settings.load_steps) * settings.min_step_fraction
-    return (c.lam < 1.0) & (c.dlam >= dlam_min) & (c.attempts < settings.max_attempts)
+    return (((c.lam < 1.0) | ~c.settled) & (c.dlam >= dlam_min)
+            & (c.attempts < settings.max_attempts))
 
 
 def continuation_start(model: Model, settings: StaticSettings) -> ContinuationState:
@@ -170,18 +197,22 @@ def continuation_start(model: Model, settings: StaticSettings) -> ContinuationSt
         accepted=zero, failures=zero, iterations=zero, attempts=zero,
         residual=jnp.array(jnp.inf), cause=jnp.array(int(Status.NOT_RUN)),
         tangent=no_tangent(model.p0), stable=jnp.array(False),
-        kick=jnp.zeros(model.p0.shape[:1] + (6,), model.p0.dtype), kicked=jnp.array(False))
+        kick=jnp.zeros(model.p0.shape[:1] + (6,), model.p0.dtype), kicked=jnp.array(False),
+        settled=jnp.array(not model.structure.settling),
+        friction_R=model.R0, friction_p=model.p0)
 
 
 def continuation_result(settings: StaticSettings, c: ContinuationState) -> Equilibrium:
-    """The :class:`Equilibrium` of a finished continuation carry."""
-    converged = c.lam >= 1.0
+    """The :class:`Equilibrium` of a finished continuation carry: at the full loads but not
+    settled, status UNRESTRAINED (a motion the supports leave free kept moving)."""
+    converged = (c.lam >= 1.0) & c.settled
     status = jnp.where(converged, Status.CONVERGED,
-                       jnp.where(c.attempts >= settings.max_attempts, Status.MAX_ATTEMPTS,
-                                 Status.STEP_TOO_SMALL))
+                       jnp.where(c.lam >= 1.0, Status.UNRESTRAINED,
+                                 jnp.where(c.attempts >= settings.max_attempts,
+                                           Status.MAX_ATTEMPTS, Status.STEP_TOO_SMALL)))
     return Equilibrium(c.R, c.p, converged, c.iterations, c.residual, c.lam, c.accepted,
                        c.failures, status, c.cause, c.y if c.y.size else None,
-                       previous=(c.R_prev, c.p_prev), tangent=c.tangent,
+                       previous=(c.friction_R, c.friction_p), tangent=c.tangent,
                        tangent_positive=c.stable)
 
 
@@ -190,8 +221,9 @@ def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
     ref = load_scale(model)
 
     def body(c: ContinuationState) -> ContinuationState:
-        lam_try, Rs, ps, ys, d = trial_level(c)
-        outcome = newton_solve(model, settings, Rs, ps, ys, lam_try, ref, (c.R, c.p))
+        lam_try, Rs, ps, ys, d = trial_level(model, c)
+        outcome = newton_solve(model, settings, Rs, ps, ys, lam_try, ref,
+                               friction_reference(c), (c.R, c.p))
         return after_newton(model, settings, c, d, lam_try, *outcome)
 
     c = jax.lax.while_loop(lambda c: continuing(settings, c), body,
@@ -211,7 +243,9 @@ class EquilibriumProblem:
     ``previous`` held fixed: the history of the earlier levels is not differentiated
     (exact for stations sliding in a direction the parameters do not turn, as the
     friction (F1) is then ``mu f_n`` whatever the slip's size; an approximation for
-    sticking stations). ``tangent``: the tangent path of the solve."""
+    sticking stations). With settling rods (:func:`.newton.settling_force`) the tangent
+    holds the settling springs: a motion nothing else holds (neutral) keeps its converged
+    value in the derivative. ``tangent``: the tangent path of the solve."""
     tangent: str
 
     def prescribed(self, params, solution):
@@ -239,9 +273,11 @@ class EquilibriumProblem:
         model, _, previous = params
         R, p, y = solution
         level = at_level(model, y, 1.0)
-        system = coupling.couple(level, R, p, y,
-                                 *residual_and_tangent(level, R, p, 1.0, self.tangent,
-                                                       previous))
+        r, tangent = residual_and_tangent(level, R, p, 1.0, self.tangent, previous)
+        if model.structure.settling:   # the settling springs (zero force at the solution)
+            k = settling_force(model, R, p, (R, p), load_scale(model))[1]
+            tangent = (tangent[0] + jax.vmap(jnp.diag)(k),) + tuple(tangent[1:])
+        system = coupling.couple(level, R, p, y, r, tangent)
         x, z = implicit_solve_coupled(system.blocks, system.B, system.C, system.D, *rhs,
                                       model.structure.identity_nodes())
         return coupling.split(model.structure, x, z)

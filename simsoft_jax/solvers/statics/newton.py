@@ -8,6 +8,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ...couplings import coupling, tendon_lengths
 from ...math import lie
@@ -18,6 +19,7 @@ from ...model.model import Model
 from ..newton import (RUNNING, capped, coupled_step, factorize, iterate, ladder, residual_norm,
                       step_norm, step_size, weighted_norm)
 from ..status import Status
+from .. import swept_check
 from ...physics.terms import registry, tendons
 from .branch import symmetric_at_equilibrium
 from .settings import StaticSettings
@@ -85,6 +87,43 @@ def tension_scale(model: Model, ref):
     return jnp.sqrt(ref ** 2 + tendons.load_scale(model.replace(tendon_tension=only)))
 
 
+SETTLING = 0.1   # the settling springs' stiffness, relative (settling_force)
+
+
+def settling_force(model: Model, R, p, previous, ref):
+    """The settling regularization of the rods whose supports leave rigid motions free
+    (``Structure.settling``): a spring per node of such a rod to its frame ``H_0`` at the
+    last accepted load level ``previous`` (proximal-point / pseudo-time continuation):
+    energy ``sum_i 1/2 xi_i . (k xi_i)`` with ``xi_i = log(H_0i^-1 H_i)`` (N,6) (body
+    twists), ``k = SETTLING ref / (sqrt(n) h)`` on the translations (N/m) and ``k h^2`` on
+    the rotations (N m/rad), ``ref`` the load scale (N, :func:`load_scale`), ``n`` the
+    settling nodes, ``h`` the characteristic length. It makes the tangent regular where
+    contact, friction or the loads hold those motions only once the rod has moved, and it
+    vanishes at convergence: the continuation repeats the full-load level, each one
+    sprung to the one before, until the springs' force is below the tolerance
+    (:func:`settled`). Returns the residual-side force ``k xi`` (N,6) (held dofs and
+    other rods' nodes zero) and the stiffness diagonal ``k`` (N,6) added to the tangent
+    (exact at ``xi = 0``)."""
+    h = model.char_length
+    mask = model.structure.settling_mask()
+    k = SETTLING * ref / (np.sqrt(mask.sum()) * h)
+    k = (jnp.asarray(mask)[:, None] * model.structure.free_mask()
+         * jnp.concatenate([jnp.full(3, 1.0), jnp.full(3, h * h)]) * k)
+    xi = jax.vmap(lambda Rq, pq, Ri, pi: lie.log_se3(lie.relative_pose(Rq, pq, Ri, pi)))(
+        previous[0], previous[1], R, p)
+    return k * xi, k
+
+
+def settled(model: Model, settings: StaticSettings, R, p, previous, ref):
+    """Whether the settling springs' force (:func:`settling_force`) at (R, p) against
+    ``previous`` is below ``tolerance`` times the load scale ``ref`` (True without
+    settling rods)."""
+    if not model.structure.settling:
+        return jnp.array(True)
+    force, _ = settling_force(model, R, p, previous, ref)
+    return weighted_norm(model, force) <= settings.tolerance * ref
+
+
 def update_frames(R, p, dx):
     return jax.vmap(lie.compose_exp)(R, p, dx)
 
@@ -136,11 +175,13 @@ def max_load_step(model: Model, settings: StaticSettings):
 
 
 def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState,
-                previous=None) -> NewtonState:
+                previous=None, settle=None) -> NewtonState:
     """One pass of :func:`newton_solve` at load level ``lam`` (load scale ``ref``): residual,
     tangent and Newton step at the trial state, then accept or backtrack (see there);
-    ``previous``: the frames (R, p) of the last converged level (the reference of the
-    quasi-static friction). With displacement-controlled tendons the system is that of
+    ``previous``: the frames (R, p) of the reference of the quasi-static friction (the
+    last converged level below the full loads); ``settle``: those of the settling springs
+    (:func:`settling_force`; the last converged level; default ``previous``). With
+    displacement-controlled tendons the system is that of
     :func:`at_level`, the load scale holds their tensions (:func:`tension_scale`) and a
     converged pass also holds their lengths: the couplings' gaps / char_length
     (:func:`simsoft_jax.couplings.coupling.violation`) below the relative tolerance (the
@@ -150,6 +191,10 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState
     ref = tension_scale(level, ref)
     tol = relative * ref
     r, tangent = residual_and_tangent(level, c.R, c.p, lam, settings.tangent, previous)
+    if model.structure.settling:   # rods their supports leave free: settling springs
+        force, k = settling_force(model, c.R, c.p, previous if settle is None else settle, ref)
+        r = r + force
+        tangent = (tangent[0] + jax.vmap(jnp.diag)(k),) + tuple(tangent[1:])
     system = coupling.couple(level, c.R, c.p, c.y, r, tangent)
     res = residual_norm(level, system, ref)
     held = True
@@ -175,6 +220,9 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState
     dx = jnp.where(accept, dx, c.dx)
     dy = jnp.where(accept, dy, c.dy)
     step = jnp.where(accept, 1.0, 0.5 * c.step)
+    # never through an obstacle or another rod: the step is cut back (swept_check)
+    step = swept_check.cut_back(model, base_p,
+                                lambda t: update_frames(base_R, base_p, t * dx)[1], step)
     trial_R, trial_p = update_frames(base_R, base_p, step * dx)
     trial_y = base_y + step * dy
     iterations = c.iterations + accept
@@ -227,7 +275,8 @@ def newton_outcome(c: NewtonState):
             c.tangent, c.positive)
 
 
-def newton_solve(model: Model, settings: StaticSettings, R, p, y, lam, ref, previous=None):
+def newton_solve(model: Model, settings: StaticSettings, R, p, y, lam, ref, previous=None,
+                 settle=None):
     """Newton iterations at load level ``lam`` from (R, p) (spec S71) with damping.
 
     One loop evaluates residual, tangent and Newton step at a trial state. The trial is
@@ -240,9 +289,8 @@ def newton_solve(model: Model, settings: StaticSettings, R, p, y, lam, ref, prev
     against ``max_iterations``) or backtracks (at most ``line_search_steps`` in a row), so
     the loop always ends (:func:`newton_pass`). Returns (R, p, y, Newton steps, residual
     norm, status code, tangent blocks at (R, p), their positive definiteness as
-    :class:`NewtonState` says). ``previous``: as in
-    :func:`newton_pass`.
+    :class:`NewtonState` says). ``previous``, ``settle``: as in :func:`newton_pass`.
     """
-    c = iterate(lambda c: newton_pass(model, settings, lam, ref, c, previous),
+    c = iterate(lambda c: newton_pass(model, settings, lam, ref, c, previous, settle),
                 newton_start(R, p, y))
     return newton_outcome(c)

@@ -1,0 +1,150 @@
+"""Swept check of an update of the frames: would it carry the rod through an obstacle or
+through another rod? (Newton updates and load-continuation predictions are cut back to a
+fraction that does not; :func:`cut_back`.)
+
+A penalty contact (:mod:`simsoft_jax.physics.terms.contact`,
+:mod:`simsoft_jax.physics.terms.rod_contact`) pushes back only while the surfaces overlap:
+an update that moves a rod from one side of an obstacle or of another rod to the other
+in one go lands in a state the penalty does not see, and Newton may converge there, an
+equilibrium with the rod passed through. The check sweeps the node positions (m) from
+the state before the update to the state after it along the straight path, sampled in
+``SAMPLES`` equal parts, and tests (states 0 and 1) the start against every sample for
+obstacles, and each part for rods:
+
+* obstacles: a node whose centreline point is in the free space in state 0 (signed
+  distance ``phi_0 > 0``, :func:`simsoft_jax.physics.obstacles.signed_distance`) and
+  inside the obstacle in state 1 (``phi_1 < 0``) has sunk deeper than its own contact
+  radius: no penalty equilibrium sinks a rod that far;
+* rods (``[contact] self``): for two element chords ``a0 a1`` and ``b0 b1`` that are not
+  neighbours on one rod, the signed distance between their lines along the common normal
+  ``n = (da x db) / |da x db|``, ``g = (b0 - a0) . n``, taken positive in state 0
+  (``g_1`` measured along state 1's normal turned to the side of state 0's), goes from
+  ``g_0 > r`` to ``g_1 < r`` (``r`` the mean of the two contact radii: the centrelines
+  come closer than one radius, through each other included) while the closest points of
+  the two lines lie within both chords in both states, each chord extended by
+  ``OVERLAP`` of its length where its rod goes on (not past a rod's free end, so that a
+  crossing at a node, or one moving on to the next chord, is in the test of some pair).
+  Chords nearer to parallel than ``PARALLEL_SINE`` (the sine of their angle) are not
+  tested (their common normal is not defined).
+
+Every pair of chords is tested (no broad phase: the update may move a rod farther than
+any margin), O(SAMPLES E^2) cheap operations per check.
+"""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..physics import obstacles
+from ..physics.assembly import rod_end_flags
+from ..math import lie
+
+PARALLEL_SINE = 0.05    # chords at a smaller angle are not tested for passing through
+OVERLAP = 0.5           # chords extended by this fraction where their rod goes on
+SAMPLES = 8             # parts of the swept path tested one by one
+HALVINGS = 30           # cut_back halves an update at most this many times
+
+
+def checked(model) -> bool:
+    """Whether the model has anything an update could pass through (static)."""
+    s = model.structure
+    return bool(s.obstacle_kinds) or bool(s.self_contact)
+
+
+def chord_pairs(structure):
+    """Static indices ``(e, f)`` (P,), (P,) of the element pairs tested for passing
+    through: every pair of elements of two rods, and of one rod unless neighbours."""
+    a = np.asarray(structure.element_nodes)
+    e, f = np.triu_indices(len(a), 1)
+    keep = a[f] != a[e] + 1            # neighbours on one rod share a node
+    return e[keep], f[keep]
+
+
+def _line_gap(a0, a1, b0, b1):
+    """Common normal ``n`` (3,), signed gap ``g = (b0 - a0) . n`` (m), the line
+    parameters ``(s, t)`` of the closest points and the sine of the chords' angle."""
+    da, db, r = a1 - a0, b1 - b0, b0 - a0
+    cross = jnp.cross(da, db)
+    size = jnp.linalg.norm(cross)
+    sine = size / jnp.maximum(jnp.linalg.norm(da) * jnp.linalg.norm(db), 1e-300)
+    n = cross / jnp.maximum(size, 1e-300)
+    aa, bb, ab = jnp.dot(da, da), jnp.dot(db, db), jnp.dot(da, db)
+    det = jnp.maximum(aa * bb - ab * ab, 1e-300)
+    s = (jnp.dot(r, da) * bb - jnp.dot(r, db) * ab) / det
+    t = (jnp.dot(r, da) * ab - jnp.dot(r, db) * aa) / det
+    return n, jnp.dot(r, n), s, t, sine
+
+
+def rods_pass(model, p0, p1):
+    """Whether some pair of chords (:func:`chord_pairs`) comes closer than one radius,
+    or passes through each other, between the node positions p0 and p1 (N,3) (one part
+    of the sweep, module docstring)."""
+    e, f = chord_pairs(model.structure)
+    if not len(e):
+        return jnp.array(False)
+    a = np.asarray(model.structure.element_nodes)
+
+    def one(x):
+        return jax.vmap(_line_gap)(x[a[e]], x[a[e] + 1], x[a[f]], x[a[f] + 1])
+
+    n0, g0, s0, t0, sin0 = one(p0)
+    n1, g1, s1, t1, sin1 = one(p1)
+    g1 = g1 * jnp.sign(jnp.sum(n0 * n1, axis=1)) * jnp.sign(g0)
+    lo, hi = -OVERLAP * (1.0 - rod_end_flags(model.structure).T)
+    hi = 1.0 - hi
+    inside = ((s0 >= lo[e]) & (s0 <= hi[e]) & (t0 >= lo[f]) & (t0 <= hi[f])
+              & (s1 >= lo[e]) & (s1 <= hi[e]) & (t1 >= lo[f]) & (t1 <= hi[f]))
+    angled = (sin0 > PARALLEL_SINE) & (sin1 > PARALLEL_SINE)
+    r = 0.5 * (model.contact_radius[e] + model.contact_radius[f])
+    return jnp.any(inside & angled & (jnp.abs(g0) > r) & (g1 < r))
+
+
+def obstacles_pass(model, p0, p1, rows=None):
+    """Whether a node goes from the free space (p0 (N,3)) to inside an obstacle (p1)
+    (module docstring); ``rows`` (K,11) the obstacles' parameter rows (default
+    ``model.obstacles``: fixed obstacles)."""
+    kinds = model.structure.obstacle_kinds
+    if not kinds:
+        return jnp.array(False)
+    rows = model.obstacles if rows is None else rows
+    out = jnp.array(False)
+    for k, kind in enumerate(kinds):
+        phi = jax.vmap(lambda x: obstacles.signed_distance(kind, rows[k], x))
+        out = out | jnp.any((phi(p0) > 0.0) & (phi(p1) < 0.0))
+    return out
+
+
+def passes(model, p0, p1, rows=None):
+    """Whether the update of the node positions p0 -> p1 (N,3) carries a rod through an
+    obstacle or another rod, swept in SAMPLES parts (module docstring); False when the
+    model has neither."""
+    if not checked(model):
+        return jnp.array(False)
+    t = jnp.linspace(0.0, 1.0, SAMPLES + 1)[:, None, None]
+    x = (1.0 - t) * p0 + t * p1
+
+    out = jnp.any(jax.vmap(lambda b: obstacles_pass(model, p0, b, rows))(x[1:]))
+    if model.structure.self_contact:
+        out = out | jnp.any(jax.vmap(lambda a, b: rods_pass(model, a, b))(x[:-1], x[1:]))
+    return out
+
+
+def cut_back(model, p0, moved, fraction, rows=None):
+    """The largest ``fraction / 2^k`` (k = 0 .. HALVINGS) of an update whose end state
+    ``moved(fraction)`` (node positions (N,3)) does not pass through (:func:`passes`)
+    from p0; the last one tried when every one does. ``fraction`` unchanged without
+    obstacles or rod contact."""
+    if not checked(model):
+        return fraction
+
+    def cond(c):
+        step, k = c
+        return (k < HALVINGS) & passes(model, p0, moved(step), rows)
+
+    return jax.lax.while_loop(cond, lambda c: (0.5 * c[0], c[1] + 1), (fraction, 0))[0]
+
+
+def update_positions(R, p, dx):
+    """Node positions (N,3) of the frames ``H exp(dx)`` (right increments dx (N,6))."""
+    return jax.vmap(lie.compose_exp)(R, p, dx)[1]
