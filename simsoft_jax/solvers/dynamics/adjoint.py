@@ -270,7 +270,8 @@ def stored_backward(programs: Programs, perturbed: Perturbed, args):
     from ..programs import PROGRAMS    # it imports the dynamics
     leaves, tree = jax.tree_util.tree_flatten(args)
     key = ("rollout gradient", programs, perturbed, tree,
-           tuple((np.shape(x), np.result_type(x), bool(getattr(x, "weak_type", False)))
+           tuple((np.shape(x), x.dtype if hasattr(x, "dtype") else np.result_type(x),
+                  bool(getattr(x, "weak_type", False)))
                  for x in leaves))
     if key not in PROGRAMS:
         model, settings, state = args[:3]
