@@ -12,8 +12,10 @@ structure has, and the registered ones the Model holds, :mod:`simsoft_jax.physic
 Two tangent paths, chosen for a whole solve by ``tangent``: ``"autodiff"`` (``jax.jacfwd``
 of the sum of the element terms, :mod:`simsoft_jax.physics.terms.autodiff`) and ``"closed_form"``
 (elastic stress, viscous stress, inertia, gravity, world-frame distributed loads and nodal
-loads in closed form; follower distributed loads, contact with friction and the
-registered terms (:mod:`simsoft_jax.physics.terms.registry`) by ``jax.jacfwd`` of their own sums); both give the same exact
+loads in closed form; contact per contact point,
+:func:`simsoft_jax.physics.terms.contact.force_and_tangent`; follower distributed loads and the
+registered terms (:mod:`simsoft_jax.physics.terms.registry`) by ``jax.jacfwd`` of their own
+sums); both give the same exact
 tangent (tests/test_tangent_paths.py). Element blocks are assembled into a
 block-tridiagonal matrix of 6x6 blocks ``(diag (N,6,6), upper (N-1,6,6), lower
 (N-1,6,6))``, ``upper[i] = K[i, i+1]``, ``lower[i] = K[i+1, i]``. Held dofs get an identity
@@ -446,10 +448,10 @@ def element_blocks(model: Model, lam, R, p, v=None, vd=None, inert=None,
     :func:`simsoft_jax.solvers.dynamics.residual.element_inertia`, with the nodal velocities and
     accelerations ``v, vd`` (N,6)). ``tangent``: "autodiff" differentiates the sum of the
     terms (:mod:`simsoft_jax.physics.terms.autodiff`); "closed_form" takes the elastic, viscous,
-    inertial and distributed-load blocks in closed form and the other terms by
-    ``jax.jacfwd`` of their own sums (contact, and the registered terms by
-    :func:`registered_and_tangents`: point loads in elements, offset gravity, tendons,
-    chambers, magnetic couples, fluid loads)."""
+    inertial and distributed-load blocks in closed form, the contact per contact point
+    (:func:`contact_and_tangent`) and the registered terms by ``jax.jacfwd`` of their own
+    sums (:func:`registered_and_tangents`: point loads in elements, offset gravity,
+    tendons, chambers, magnetic couples, fluid loads)."""
     s = model.structure
     dynamic = inert is not None
     if dynamic:
