@@ -147,3 +147,31 @@ def test_no_damping_ratio_is_the_undamped_model():
     """``damping_ratio = 0`` (the default) builds no damping (the undamped contact)."""
     assert sj.build_model(sj.Scene.from_dict(_scene(0.0))).contact_damping is None
     assert float(sj.build_model(sj.Scene.from_dict(_scene(0.4))).contact_damping) == 0.4
+
+
+def test_stiff_impact_the_step_cannot_resolve_stands_when_damped():
+    """The drop of tests/test_dynamics_limits.py on k = 1e9 N/m^2 (contact time 7e-5 s,
+    below a tenth of the smallest sub-step dt/64: undamped, the run stops with the cause
+    contact_unresolved), critically damped: the steps over the impact stand unless they
+    throw the rod back, the run converges, and the rod never rises above its drop height
+    h0 after the impact (no energy gained; gravity's potential bounds it) and is back on
+    the floor at the end (within 2 % of h0)."""
+    h0, g = 0.05, 9.81
+    scene = {"solver": {"kind": "dynamic", "t_end": 0.6, "dt": 1e-2},
+             "gravity": {"vector": [0.0, 0.0, -g]},
+             "rods": [{"name": "rod", "elements": 10,
+                       "geometry": {"kind": "straight", "length": 0.5},
+                       "base": {"position": [0.0, 0.0, h0]},
+                       "stiffness": {"EA": 1e5, "GAy": 1e5, "GAz": 1e5, "GJ": 1.0, "EIy": 1.0,
+                                     "EIz": 1.0},
+                       "inertia": {"rhoA": 0.5, "rhoJ": 1e-4, "rhoIy": 5e-5, "rhoIz": 5e-5}}],
+             "obstacles": [{"name": "floor", "kind": "plane", "point": [0.0, 0.0, -R_CONTACT],
+                            "normal": [0.0, 0.0, 1.0]}],
+             "contact": {"radius": R_CONTACT, "stiffness": 1e9, "damping_ratio": 1.0}}
+    res = sj.run(scene)
+    assert res.converged
+    z = res.positions("rod")[..., 2]
+    assert z.max() <= h0 + 1e-12
+    impact = int(np.argmax(res.contacts["floor"]["max_penetration"] > 0.0))
+    assert impact > 0 and z[impact:].max() < h0
+    assert np.abs(z[-1]).max() < 0.02 * h0          # back on the floor (centre at z = 0)
