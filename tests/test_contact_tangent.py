@@ -1,5 +1,5 @@
-"""The frictionless contact tangent (:func:`simsoft_jax.physics.terms.contact.force_and_tangent`)
-against its reference: ``jax.jacfwd`` of the contact force
+"""The contact tangents (:func:`simsoft_jax.physics.terms.contact.force_and_tangent`)
+against their reference: ``jax.jacfwd`` of the contact force
 (:func:`simsoft_jax.physics.terms.contact.force`) in the 12 right perturbations of the two nodal
 frames, for every obstacle kind, a bent and twisted element pressed into each obstacle at
 several stations, with and without end caps."""
@@ -66,9 +66,53 @@ def test_frictionless_tangent_equals_jacfwd_of_the_force(kind):
                                data(None), (kind,), POINTS)[0]
     assert int(jnp.sum(pressed > 0.0)) >= 2          # the element is in contact
     for caps in (jnp.zeros(2), jnp.array([RADIUS, RADIUS])):    # without and with end caps
-        (value, tangent), expected, reference = both(caps)
+        (value, tangent, rate), expected, reference = both(caps)
+        assert rate is None                              # no velocity read
         np.testing.assert_allclose(value, expected, rtol=0,
                                    atol=1e-12 * float(jnp.abs(expected).max()))
         assert float(jnp.abs(reference).max()) > 0.0
         np.testing.assert_allclose(tangent, reference, rtol=0,
                                    atol=1e-9 * float(jnp.abs(reference).max()))
+
+
+@pytest.mark.parametrize("law", ["regularized", "stick_slip"])
+def test_tangents_with_friction_and_damping_equal_jacfwd_of_the_force(law):
+    """With friction (either law) and the normal damping (D1), a moving element: the K
+    block (frames, at fixed body velocities) and the C block (velocities) of
+    ``force_and_tangent`` against ``jax.jacfwd`` of the force in the 12 perturbations
+    and the 12 velocities, for two obstacle kinds at once (a plane and a sphere), with
+    end caps."""
+    RA, pA, RB, pB = _element()
+    length = jnp.asarray(0.1)
+    rng = np.random.default_rng(11)
+    ve = jnp.asarray(0.3 * rng.standard_normal(12))
+    kinds = ("plane", "sphere")
+    rows = jnp.asarray(np.stack([OBSTACLES[k] for k in kinds]))
+    anchor = None
+    if law == "stick_slip":   # anchors a little off the stations: some stick, some slide
+        x = jax.vmap(lambda t: contact.centreline_point(
+            RA, pA, element_state(RA, pA, RB, pB, ve, ve).d, t)[1])(
+            jnp.asarray(contact.station_points(POINTS)))
+        anchor = x[:, None, :] + jnp.asarray(1e-4 * rng.standard_normal((POINTS + 2, 2, 3)))
+    data = contact.ContactData(jnp.asarray(RADIUS), jnp.asarray(STIFFNESS), rows,
+                               jnp.asarray([0.3, 0.5]), jnp.asarray(0.01),
+                               jnp.asarray([[0.01, 0.0, 0.0], [0.0, -0.02, 0.0]]),
+                               jnp.array([RADIUS, RADIUS]), anchor, jnp.asarray(40.0))
+
+    def force(y):
+        RA1, pA1 = lie.compose_exp(RA, pA, y[:6])
+        RB1, pB1 = lie.compose_exp(RB, pB, y[6:12])
+        u = ve + y[12:]
+        return contact.force(element_state(RA1, pA1, RB1, pB1, u, u), data, length, kinds,
+                             POINTS, True)
+
+    both = jax.jit(lambda: (contact.force_and_tangent(
+        element_state(RA, pA, RB, pB, ve, ve), data, length, kinds, POINTS, True),
+        force(jnp.zeros(24)), jax.jacfwd(force)(jnp.zeros(24))))
+    (value, K, C), expected, reference = both()
+    np.testing.assert_allclose(value, expected, rtol=0,
+                               atol=1e-12 * float(jnp.abs(expected).max()))
+    for block, expected_block in ((K, reference[:, :12]), (C, reference[:, 12:])):
+        scale = float(jnp.abs(expected_block).max())
+        assert scale > 0.0
+        np.testing.assert_allclose(block, expected_block, rtol=0, atol=1e-9 * scale)

@@ -62,12 +62,15 @@ and solved through the public API:
   above ``1/dt``, which ``rho_inf = 0.9`` leaves ringing (normal speeds of 0.1-0.3 m/s
   on the capstan, enough to shake the rope loose), while ``rho_inf = 0`` removes it in
   a step and changes the slow modes (``omega dt`` about 0.1) by ``O((omega dt)^2)``.
-  A step that an impact on an obstacle makes too long is sub-stepped
-  (:mod:`simsoft_jax.solvers.dynamics.contact_time`); with obstacles the sub-steps may be
-  halved until they resolve the contact time ``pi sqrt(rhoA / k)`` (``max_halvings``:
-  ``ceil(log2(10 dt_max / t_c))``, at least 6; 10 on the capstan), so that the rope
-  settling onto the penalty at the start (about 10 micrometres) is followed, after
-  which resting contact takes whole steps.
+  The contact with obstacles is critically damped along the normal (``[contact]
+  damping_ratio = 1``, :mod:`simsoft_jax.physics.terms.contact` (D1)): an impact
+  resolved in time leaves no rebound, and a step too long for the contact time is
+  refused only where it throws the rope back off an obstacle
+  (:mod:`simsoft_jax.solvers.dynamics.contact_time`), so the rope settling onto the
+  penalty at the start (about 10 micrometres) takes a few sub-steps instead of
+  following the contact time. The sub-steps may still be halved until they resolve
+  the contact time ``pi sqrt(rhoA / k)`` (``max_halvings``:
+  ``ceil(log2(10 dt_max / t_c))``, at least 6; 10 on the capstan).
 """
 from __future__ import annotations
 
@@ -94,6 +97,7 @@ except ImportError as error:  # pragma: no cover - exercised only without the ex
 
 RHO_INF = 0.9
 RHO_INF_CONTACT = 0.0  # quasi-static scenarios with contact (module docstring)
+CONTACT_DAMPING_RATIO = 1.0  # normal damping of the contact with obstacles (docstring)
 MAX_HALVINGS = DynamicSettings.__dataclass_fields__["max_halvings"].default
 STEPS_PER_PERIOD = {True: 40, False: 200}  # keyed by Scenario.quasi_static
 _initial_state = jax.jit(initial_state)
@@ -211,6 +215,8 @@ def scene_dict(scenario, n_elements, damping=0.0, dt=None):
                               for i, o in enumerate(scenario.obstacles)]
     if _has_contact(scenario):
         scene["contact"] = {"self": _rod_contact(scenario)}
+        if scenario.obstacles:
+            scene["contact"]["damping_ratio"] = CONTACT_DAMPING_RATIO
         if any(o["friction"] > 0 for o in scene.get("obstacles", ())):
             scene["contact"]["friction_law"] = "stick_slip"
     return scene
@@ -315,7 +321,8 @@ class SimsoftJaxSolver:
             model = build_model(Scene.from_dict(scene))
             out["contact"] = {"penalty_stiffness": float(np.max(model.contact_stiffness)),
                               "friction": scene["contact"].get("friction_law", "none"),
-                              "rod_contact": scene["contact"]["self"]}
+                              "rod_contact": scene["contact"]["self"],
+                              "damping_ratio": scene["contact"].get("damping_ratio", 0.0)}
         return out
 
     def run(self, scenario, *, n_elements: int, n_frames: int):

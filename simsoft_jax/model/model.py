@@ -187,6 +187,8 @@ class Model:
     m/s their velocities at the model's time (zeros; set with the rows by
     :func:`simsoft_jax.model.loads.loads_at`, read by the friction); slip_displacement (E,) m:
     the slip scale of static friction (:mod:`simsoft_jax.physics.terms.static_friction`);
+    contact_damping () the damping ratio ``zeta`` of the normal contact damping (dynamics,
+    (D1) of :mod:`simsoft_jax.physics.terms.contact`; None without it);
     self_exclusion () m: the arclength within which a rod's own elements do not touch
     (rod-rod contact, :mod:`simsoft_jax.couplings.rod_pairs`). friction_anchor (E,S,K,3)
     m: the stick-slip anchors (world) of the contact stations during a dynamic step
@@ -245,6 +247,7 @@ class Model:
     obstacle_law: TimeLaws = None
     obstacle_velocity: jax.Array = None
     slip_displacement: jax.Array = None
+    contact_damping: jax.Array = None
     self_exclusion: jax.Array = None
     friction_anchor: jax.Array = None
     magnetic: object = None

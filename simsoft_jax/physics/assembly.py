@@ -12,8 +12,10 @@ structure has, and the registered ones the Model holds, :mod:`simsoft_jax.physic
 Two tangent paths, chosen for a whole solve by ``tangent``: ``"autodiff"`` (``jax.jacfwd``
 of the sum of the element terms, :mod:`simsoft_jax.physics.terms.autodiff`) and ``"closed_form"``
 (elastic stress, viscous stress, inertia, gravity, world-frame distributed loads and nodal
-loads in closed form; follower distributed loads, contact with friction and the
-registered terms (:mod:`simsoft_jax.physics.terms.registry`) by ``jax.jacfwd`` of their own sums); both give the same exact
+loads in closed form; contact per contact point,
+:func:`simsoft_jax.physics.terms.contact.force_and_tangent`; follower distributed loads and the
+registered terms (:mod:`simsoft_jax.physics.terms.registry`) by ``jax.jacfwd`` of their own
+sums); both give the same exact
 tangent (tests/test_tangent_paths.py). Element blocks are assembled into a
 block-tridiagonal matrix of 6x6 blocks ``(diag (N,6,6), upper (N-1,6,6), lower
 (N-1,6,6))``, ``upper[i] = K[i, i+1]``, ``lower[i] = K[i+1, i]``. Held dofs get an identity
@@ -113,39 +115,24 @@ def element_force_and_tangent(P, d, stress, stress_jacobian, RA, length, dead, f
 def contact_and_tangent(model: Model, R, p, v=None):
     """Nodal forces (E,12) of the contact with the obstacles
     (:mod:`simsoft_jax.physics.terms.contact`), their left-invariant tangents (E,12,12) and, in
-    dynamics with friction (``v`` (N,6) the nodal body velocities), their derivatives in
-    the nodal velocities (E,12,12) (else None). Frictionless: the tangent of
-    :func:`~simsoft_jax.physics.terms.contact.force_and_tangent`; with friction: ``jax.jacfwd`` in
-    the 12 right perturbations of the two nodal frames and the 12 velocities. None when
-    the scene has no obstacles. Contact is a reaction: it is not scaled by the load
-    level."""
+    dynamics with the regularized friction or the normal damping (``v`` (N,6) the nodal
+    body velocities), their derivatives in the nodal velocities (E,12,12) (else None),
+    all by :func:`~simsoft_jax.physics.terms.contact.force_and_tangent` (the friction in
+    dynamics only). None when the scene has no obstacles. Contact is a reaction: it is
+    not scaled by the load level."""
     s = model.structure
     if not s.obstacle_kinds:
         return None
     friction = v is not None and contact.dynamic_friction(
         s.friction_law, model.obstacle_friction, model.friction_anchor)
-    rate = friction and model.friction_anchor is None    # the regularized law reads v
     a = jnp.asarray(s.element_nodes)
-    ve = (jnp.concatenate([v[a], v[a + 1]], axis=1) if rate
-          else jnp.zeros((s.n_elements, 12), p.dtype))
+    ve = (jnp.zeros((s.n_elements, 12), p.dtype) if v is None
+          else jnp.concatenate([v[a], v[a + 1]], axis=1))
 
     def one(RA, pA, RB, pB, ve, data):
-        if not friction:   # the tangent in closed form but for the map's d-derivative
-            value, jac = contact.force_and_tangent(element_state(RA, pA, RB, pB, ve, ve),
-                                                   data.contact, data.length,
-                                                   s.obstacle_kinds, s.contact_points)
-            return value, jac, None
-
-        def f(y):
-            RA1, pA1 = lie.compose_exp(RA, pA, y[:6])
-            RB1, pB1 = lie.compose_exp(RB, pB, y[6:12])
-            el = element_state(RA1, pA1, RB1, pB1, ve + y[12:] if rate else ve, ve)
-            value = contact.force(el, data.contact, data.length, s.obstacle_kinds,
-                                  s.contact_points, True)
-            return value, value
-
-        jac, value = jax.jacfwd(f, has_aux=True)(jnp.zeros(24 if rate else 12, RA.dtype))
-        return value, jac[:, :12], jac[:, 12:] if rate else None
+        return contact.force_and_tangent(element_state(RA, pA, RB, pB, ve, ve), data.contact,
+                                         data.length, s.obstacle_kinds, s.contact_points,
+                                         friction)
 
     return jax.vmap(one)(*element_poses(model, R, p), ve, element_data(model))
 
@@ -230,7 +217,9 @@ def rod_end_flags(structure) -> np.ndarray:
 def contact_data(model: Model):
     """Per-element :class:`~simsoft_jax.physics.terms.contact.ContactData` (E, ...), the obstacle
     rows broadcast to every element, the end caps (E,2) the contact radius at each rod's
-    first and last node; None when the scene has no obstacles."""
+    first and last node, the normal damping coefficient ``2 zeta sqrt(k rhoA)`` (E,)
+    N s/m^2 (``zeta = model.contact_damping``; None without it); None when the scene has
+    no obstacles."""
     if not model.structure.obstacle_kinds:
         return None
     n = model.length.shape[0]
@@ -240,11 +229,15 @@ def contact_data(model: Model):
 
     ends = rod_end_flags(model.structure)
     friction = None if model.obstacle_friction is None else each(model.obstacle_friction)
+    damping = None
+    if model.contact_damping is not None:   # c = 2 zeta sqrt(k rhoA) (contact.py, D1)
+        rho_a = jax.vmap(line_density)(model.inertia)
+        damping = 2.0 * model.contact_damping * jnp.sqrt(model.contact_stiffness * rho_a)
     return contact.ContactData(model.contact_radius, model.contact_stiffness,
                                each(model.obstacles), friction,
                                each(model.slip_velocity), each(model.obstacle_velocity),
                                jnp.asarray(ends) * model.contact_radius[:, None],
-                               model.friction_anchor)
+                               model.friction_anchor, damping)
 
 
 def static_friction_and_tangent(model: Model, R, p, previous, tangent: bool = True):
@@ -455,10 +448,10 @@ def element_blocks(model: Model, lam, R, p, v=None, vd=None, inert=None,
     :func:`simsoft_jax.solvers.dynamics.residual.element_inertia`, with the nodal velocities and
     accelerations ``v, vd`` (N,6)). ``tangent``: "autodiff" differentiates the sum of the
     terms (:mod:`simsoft_jax.physics.terms.autodiff`); "closed_form" takes the elastic, viscous,
-    inertial and distributed-load blocks in closed form and the other terms by
-    ``jax.jacfwd`` of their own sums (contact, and the registered terms by
-    :func:`registered_and_tangents`: point loads in elements, offset gravity, tendons,
-    chambers, magnetic couples, fluid loads)."""
+    inertial and distributed-load blocks in closed form, the contact per contact point
+    (:func:`contact_and_tangent`) and the registered terms by ``jax.jacfwd`` of their own
+    sums (:func:`registered_and_tangents`: point loads in elements, offset gravity,
+    tendons, chambers, magnetic couples, fluid loads)."""
     s = model.structure
     dynamic = inert is not None
     if dynamic:

@@ -22,7 +22,8 @@ KINDS = tuple(OBSTACLE_KEYS)      # obstacle kinds (simsoft_jax.physics.obstacle
 ROW = 11                          # length of an obstacle's parameter row
 MOTION_KEYS = ("displacement", "profile")
 CONTACT_KEYS = ("radius", "self", "stiffness", "slip_velocity", "slip_displacement",
-                "quadrature_points", "self_exclusion", "max_pairs", "friction_law")
+                "quadrature_points", "self_exclusion", "max_pairs", "friction_law",
+                "damping_ratio")
 STIFFNESS_FACTOR = 1.0e3       # default penalty: 1e3 EI / h^4 per element
 SLIP_VELOCITY = 1.0e-3         # m/s, default slip-velocity scale of the friction
 SLIP_FRACTION = 1.0e-3         # default slip-displacement scale (statics) / contact radius
@@ -31,6 +32,7 @@ FRICTION_LAWS = ("regularized", "stick_slip")   # [contact] friction_law (dynami
 SELF_NAME = "rods"             # the rod-rod entry of the result's contacts
 MAX_PAIRS = 8                  # default capacity of the rod-rod narrow phase (element pairs)
 MOST_QUADRATURE_POINTS = 64    # the largest contact.quadrature_points accepted
+MOST_DAMPING_RATIO = 100.0     # the largest contact.damping_ratio accepted
 MOST_PAIRS = 1_000             # the largest contact.max_pairs (a dense solve of 6 (2 n + 2))
 
 
@@ -55,6 +57,7 @@ class ContactSpec(SpecBase):
     self_exclusion: float | None = None   # m; None: 2 pi max(contact radius)
     max_pairs: int = MAX_PAIRS            # element pairs the narrow phase holds
     friction_law: str = "regularized"     # dynamics: "regularized" | "stick_slip"
+    damping_ratio: float = 0.0            # dynamics: normal contact damping ratio zeta
 
 
 def parameter_row(kind: str, values: dict) -> np.ndarray:
@@ -135,7 +138,7 @@ def parse_obstacles(items: list, profile=None, dynamic: bool = False) -> tuple:
 
 def parse_contact(value) -> ContactSpec:
     """``[contact]`` -> ContactSpec (``self``: a bool; ``self_exclusion`` > 0,
-    ``max_pairs`` >= 1 only with ``self = true``)."""
+    ``max_pairs`` >= 1 only with ``self = true``; ``damping_ratio`` in [0, 100])."""
     c = table(value, "contact")
     check_keys(c, "contact", CONTACT_KEYS)
     args = {"self_contact": c.get("self", False)}
@@ -147,6 +150,11 @@ def parse_contact(value) -> ContactSpec:
     for key in ("radius", "stiffness", "slip_velocity", "slip_displacement", "self_exclusion"):
         if key in c:
             args[key] = positive(c[key], join("contact", key))
+    if "damping_ratio" in c:
+        args["damping_ratio"] = number(c["damping_ratio"], "contact.damping_ratio")
+        if not 0.0 <= args["damping_ratio"] <= MOST_DAMPING_RATIO:
+            fail("contact.damping_ratio", f"must be in [0, {MOST_DAMPING_RATIO:g}] (the "
+                 f"damping ratio of the normal contact), got {c['damping_ratio']}")
     if "friction_law" in c:
         args["friction_law"] = choice(c["friction_law"], "contact.friction_law",
                                       FRICTION_LAWS)
@@ -196,7 +204,8 @@ def check_contact_radius(rods, spec, obstacles: bool) -> None:
 def contact_tables(scene, stiffness, length):
     """Model tables of the contact: per element radius (E,) m, penalty stiffness (E,)
     N/m^2 and slip-displacement scale of static friction (E,) m, obstacle rows (K,ROW),
-    friction (K,), motion displacements (K,3) m (zeros for fixed obstacles; their time
+    friction (K,), the normal damping ratio () (None when 0: no damping), motion
+    displacements (K,3) m (zeros for fixed obstacles; their time
     laws: :func:`motion_profiles`) and velocities (K,3) (zeros: at rest until
     :func:`simsoft_jax.model.loads.loads_at` moves them), the self-contact exclusion arclength
     () m, from the scene's rods, ``[contact]`` and obstacles; ``stiffness`` (E,6) or
@@ -222,6 +231,7 @@ def contact_tables(scene, stiffness, length):
             is not None else SLIP_FRACTION * radius)
     return dict(contact_radius=radius, contact_stiffness=k, slip_displacement=slip,
                 self_exclusion=exclusion,
+                contact_damping=spec.damping_ratio if spec.damping_ratio > 0.0 else None,
                 obstacles=rows, obstacle_friction=np.array([o.friction for o in
                                                             obstacles], float),
                 obstacle_shift=shift, obstacle_velocity=np.zeros_like(shift),

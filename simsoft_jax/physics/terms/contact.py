@@ -76,6 +76,22 @@ normal), a sliding one drags it at the distance ``|f| / k_t``, a station out of 
 (``c = 0``) takes it along, so contact begins with an unstretched spring. Between
 ``r0 mu f_n`` and ``mu f_n`` a held station creeps by ``c (r - g(r)) / k_t`` per step.
 The law has no velocity: its C block is zero, its K block comes by ``jax.jacfwd``.
+
+Normal damping (dynamics, ``[contact] damping_ratio`` ``zeta``). A dissipative normal line
+load opposes the station's normal speed ``v_n = v_r . n`` (positive separating):
+
+    f_d = -c a(delta) v_n n,   c = 2 zeta sqrt(k rhoA),   a(delta) = S(delta / eps)     (D1)
+
+with ``rhoA`` the element's line density (kg/m) and ``S(u) = 3u^2 - 2u^3`` on [0, 1] (0
+below, 1 above): ``a`` and its slope vanish at contact onset, so the load is C1 in the
+penetration, and past the smoothing width the penalty and (D1) are a linear spring and
+dashpot per unit length of damping ratio ``zeta`` (natural frequency ``sqrt(k/rhoA)``): a
+resolved impact leaves with the restitution ``exp(-zeta pi / sqrt(1 - zeta^2))`` of that
+oscillator (none for ``zeta >= 1``). Like a Kelvin-Voigt contact it may pull briefly while
+the station leaves (the restitution above counts on it). It reads the velocities: its
+tangent in them is in the C block of the iteration matrix (by ``jax.jacfwd``, with the
+friction's). The friction's bound ``mu f_n`` and the reported contact forces use the
+penalty's ``f_n = psi'`` only.
 """
 from __future__ import annotations
 
@@ -98,7 +114,8 @@ class ContactData(NamedTuple):
     coefficients, slip_velocity () m/s, velocity (K,3) m/s of the (translating)
     obstacles, caps (2,) m the end-cap lengths of its nodes A and B (the radius at a
     rod's end, else 0; None: no caps), anchor (S,K,3) m the stick-slip anchors (world) of
-    its stations (None: the regularized law, or no friction)."""
+    its stations (None: the regularized law, or no friction), damping () N s/m^2 the
+    normal damping coefficient ``c`` of (D1) (None: no damping)."""
     radius: jax.Array
     stiffness: jax.Array
     obstacles: jax.Array
@@ -107,6 +124,7 @@ class ContactData(NamedTuple):
     velocity: jax.Array
     caps: jax.Array = None
     anchor: jax.Array = None
+    damping: jax.Array = None
 
 
 def quadrature(n: int):
@@ -132,6 +150,13 @@ def penalty_slope(delta, k, eps):
     """``psi'(delta)`` (N/m): the normal line load at penetration ``delta`` (m)."""
     inside = jnp.clip(delta, 0.0, eps)
     return jnp.where(delta < eps, k * inside**2 / (2.0 * eps), k * (delta - 0.5 * eps))
+
+
+def damping_activation(delta, eps):
+    """``a(delta)`` of (D1): ``S(delta/eps)``, ``S(u) = 3u^2 - 2u^3`` clipped to [0, 1]
+    (0 out of contact, 1 past the smoothing width ``eps``; value and slope continuous)."""
+    u = jnp.clip(delta / eps, 0.0, 1.0)
+    return u * u * (3.0 - 2.0 * u)
 
 
 def penalty(delta, k, eps):
@@ -211,74 +236,145 @@ def stick_slip_load(x, anchor, load, normals, stiffness, mu):
     return f, x[:, None, :] + f / stiffness                                     # (S3)
 
 
-def force(el, data: ContactData, length, kinds: tuple, n: int, friction: bool = False):
-    """Nodal forces (12,) of the contact (and, when ``friction``, the friction: the
-    stick-slip law against ``data.anchor`` when it is given, else the regularized law) of
-    one element (:class:`~simsoft_jax.physics.terms.Element` ``el`` with ``el.pA``) with the
-    obstacles ``kinds`` (static), residual side (module docstring); ``length`` the
-    element's reference length (m), ``n`` the quadrature points."""
-    xi = station_points(n)
-    _, load, normals, R, x = stations(el.RA, el.pA, el.d, data, kinds, n)
-    maps = jax.vmap(lambda t: element.velocity_field_map(t, el.d, el.P))(jnp.asarray(xi))
-    f = jnp.einsum("nk,nki->ni", load, normals)                  # world line load (n,3)
+def _reads_velocity(data: ContactData, friction: bool) -> bool:
+    """Whether the line load reads the stations' velocities (static): the regularized
+    friction or the normal damping."""
+    return (friction and data.anchor is None) or data.damping is not None
+
+
+def station_load(y, u, anchor, data: ContactData, kinds: tuple, friction: bool):
+    """The world line load (3,) N/m of the obstacles on a station at the point ``y`` (3,)
+    moving with the world velocity ``u`` (3,) m/s: the penalty ``sum_k psi' n_k``, the
+    normal damping (D1) when ``data.damping`` is given and, when ``friction``, the friction
+    (stick-slip (S1)-(S2) against the station's anchors ``anchor`` (K,3) when
+    ``data.anchor`` is given, else the regularized law). ``u`` and ``anchor`` are read only
+    by the laws that need them."""
+    pen, load, normals = _point_contact(y, data, kinds)
+    f = load @ normals
+    if _reads_velocity(data, friction):
+        rel = u[None, :] - data.velocity                          # relative (K,3)
+        vn = jnp.sum(normals * rel, -1)                           # (K,)
+    if data.damping is not None:                                  # (D1)
+        f = f - (data.damping * damping_activation(pen, SMOOTHING * data.radius) * vn) @ normals
     if friction and data.anchor is not None:
-        f = f + stick_slip_load(x, data.anchor, load, normals, data.stiffness,
-                                data.friction)[0].sum(1)
+        f = f + stick_slip_load(y[None], anchor[None], load[None], normals[None],
+                                data.stiffness, data.friction)[0][0].sum(0)
     elif friction:
-        v = jnp.einsum("nij,nj->ni", R, (maps @ el.ve)[:, :3])   # centreline velocity
-        v = v[:, None, :] - data.velocity[None]                    # relative (n,K,3)
-        vn = jnp.einsum("nki,nki->nk", normals, v)
-        vt = v - vn[..., None] * normals                           # (n,K,3)
+        vt = rel - vn[:, None] * normals                          # (K,3)
         slip = jnp.sqrt(jnp.sum(vt**2, -1) + data.slip_velocity**2)
-        f = f - jnp.einsum("nk,nki->ni", data.friction * load / slip, vt)
+        f = f - (data.friction * load / slip) @ vt
+    return f
+
+
+def _station_velocities(R, maps, ve):
+    """World centreline velocities (S,3) of the stations: ``R_i (N_i v_e)_u``."""
+    return jnp.einsum("sij,sj->si", R, (maps @ ve)[:, :3])
+
+
+def _anchors(data: ContactData, n: int):
+    """The stations' anchors (S,K,3), zeros when the law has none (not read then)."""
+    return (jnp.zeros((n + 2,) + data.velocity.shape, data.velocity.dtype)
+            if data.anchor is None else data.anchor)
+
+
+def force(el, data: ContactData, length, kinds: tuple, n: int, friction: bool = False):
+    """Nodal forces (12,) of the contact, its normal damping (D1) when ``data.damping`` is
+    given (zero at rest: in statics ``el.ve`` is zero) and, when ``friction``, the
+    friction (the stick-slip law against ``data.anchor`` when it is given, else the
+    regularized law) of one element (:class:`~simsoft_jax.physics.terms.Element` ``el``
+    with ``el.pA``) with the obstacles ``kinds`` (static), residual side (module
+    docstring, :func:`station_load`); ``length`` the element's reference length (m),
+    ``n`` the quadrature points."""
+    xi = jnp.asarray(station_points(n))
+    R, x = jax.vmap(lambda t: centreline_point(el.RA, el.pA, el.d, t))(xi)
+    maps = jax.vmap(lambda t: element.velocity_field_map(t, el.d, el.P))(xi)
+    u = _station_velocities(R, maps, el.ve)
+    f = jax.vmap(lambda y, w, a: station_load(y, w, a, data, kinds, friction))(
+        x, u, _anchors(data, n))                                   # world line load (S,3)
     local = jnp.einsum("nji,nj->ni", R, f)                         # R^T f
     wrench = jnp.concatenate([local, jnp.zeros_like(local)], axis=1)
     return -jnp.einsum("n,nji,nj->i", station_weights(length, data.caps, n), maps, wrench)
 
 
-def force_and_tangent(el, data: ContactData, length, kinds: tuple, n: int):
-    """Frictionless contact forces (12,) of one element, as :func:`force`, and their
-    left-invariant tangent (12,12) in the right perturbations ``y`` of the two nodal frames.
+def _pulled(d, xi, weights, local):
+    """``sum_i c_i N_i(d)^T [l_i; 0]`` (12,) at fixed section-frame loads ``l_i`` (S,3),
+    by S38: ``N^T [l; 0] = [Ad_{exp(-xi d)}[:3]^T l; 0] + xi P(d)^T T(xi d)[:3]^T l``."""
+    def station(t, c, load):
+        left = lie.adjoint_se3(lie.exp_se3(-t * d))[:3]
+        return c * (left.T @ load), (c * t) * (lie.tangent_se3(t * d)[:3].T @ load)
 
-    With the world line load ``F(x) = sum_k psi'(delta_k) grad phi_k`` at a station's
-    point x and its section-frame value ``l_i = R_i^T F(x_i)``, the force is
-    ``f = -sum_i c_i N_i^T [l_i; 0]`` (``N_i`` the velocity-field map at the station,
-    spec S38). A perturbation y moves station i by the section twist ``N_i y``
-    (``dx = R_i du``, ``dR = R_i skew(dtheta)``), so ``dl_i = [R_i^T H_i R_i, skew(l_i)]
-    N_i y`` with ``H_i = dF/dx`` (3,3; ``jax.jacfwd`` in the 3 coordinates); ``N_i``
-    depends on the element only through its twist d, which moves by ``P y`` (S37). Hence
-    ``K = -sum_i c_i N_i[:3]^T [R_i^T H_i R_i, skew(l_i)] N_i - (d/dd sum_i c_i
-    N_i(d)[:3]^T l_i) P``, the last factor by ``jax.jacfwd`` in the 6 components of d at
-    fixed ``l_i``. The same tangent as ``jax.jacfwd`` of :func:`force` in the 12
-    perturbations (checked in the tests), at a fraction of its cost.
+    rigid, through = jax.vmap(station)(xi, weights, local)
+    return (jnp.concatenate([rigid.sum(0), jnp.zeros(6, d.dtype)])
+            + element.strain_map(d).T @ through.sum(0))
+
+
+def force_and_tangent(el, data: ContactData, length, kinds: tuple, n: int,
+                      friction: bool = False):
+    """The contact forces (12,) of one element, as :func:`force`, their left-invariant
+    tangent K (12,12) in the right perturbations ``y`` of the two nodal frames (at fixed
+    nodal body velocities) and, when the load reads the velocities (regularized
+    friction, normal damping), their derivative C (12,12) in the nodal velocities
+    ``v_e`` (else None).
+
+    With the world line load ``F(x, u)`` of a station at the point x moving with the world
+    velocity u (:func:`station_load`) and its section-frame value ``l_i = R_i^T F_i``,
+    the force is ``f = -sum_i c_i N_i^T [l_i; 0]`` (``N_i`` the velocity-field map at the
+    station, spec S38). A perturbation y moves station i by the section twist ``N_i y``
+    (``dx = R_i du``, ``dR = R_i skew(dtheta)``) and ``N_i`` through the element's twist
+    d, which moves by ``P y`` (S37); the station's velocity ``u_i = R_i a_i``,
+    ``a_i = (N_i v_e)_u``, moves by ``R_i (-skew(a_i) dtheta + J_i P y)`` with
+    ``J_i = d a_i / d d`` at fixed ``v_e``, and by ``R_i (N_i dv_e)_u`` with the
+    velocities. With ``H_i = dF/dx``, ``D_i = dF/du`` (3,3; ``jax.jacfwd`` in the 6
+    coordinates of a station):
+
+        dl_i = [R^T H R, skew(l_i)] N_i y + R^T D R (-skew(a_i) (N_i y)_theta + J_i P y
+               + (N_i dv_e)_u)
+
+    so ``K = -sum_i c_i N_i[:3]^T dl_i/dy - (d/dd sum_i c_i N_i(d)[:3]^T l_i) P`` (the
+    last factor by ``jax.jacfwd`` in the 6 components of d at fixed ``l_i``) and
+    ``C = -sum_i c_i N_i[:3]^T R_i^T D_i R_i N_i[:3]``. The same as ``jax.jacfwd`` of
+    :func:`force` in the 12 perturbations and the 12 velocities (checked in the tests),
+    at a fraction of its cost.
     """
     xi = jnp.asarray(station_points(n))
     R, x = jax.vmap(lambda t: centreline_point(el.RA, el.pA, el.d, t))(xi)
+    maps = jax.vmap(lambda t: element.velocity_field_map(t, el.d, el.P))(xi)
+    u = _station_velocities(R, maps, el.ve)
+    rate = _reads_velocity(data, friction)
 
-    def line_load(y):   # world line load (3,) N/m at the point y
-        _, load, normals = _point_contact(y, data, kinds)
-        return load @ normals
+    def load(z, anchor):   # world line load (3,) at z = [x; u]
+        return station_load(z[:3], z[3:], anchor, data, kinds, friction)
 
-    F, H = jax.vmap(lambda y: (line_load(y), jax.jacfwd(line_load)(y)))(x)
+    def with_slopes(y, w, anchor):
+        if rate:
+            z = jnp.concatenate([y, w])
+            return load(z, anchor), jax.jacfwd(load)(z, anchor)
+        return load(jnp.concatenate([y, w]), anchor), jnp.concatenate(
+            [jax.jacfwd(lambda q: load(jnp.concatenate([q, w]), anchor))(y),
+             jnp.zeros((3, 3), y.dtype)], axis=1)
+
+    F, slopes = jax.vmap(with_slopes)(x, u, _anchors(data, n))     # (S,3), (S,3,6)
+    H, D = slopes[..., :3], slopes[..., 3:]
     local = jnp.einsum("sji,sj->si", R, F)                                  # R^T F (S,3)
     weights = station_weights(length, data.caps, n)
-
-    def pulled(d):      # sum_i c_i N_i(d)^T [l_i; 0] at fixed l_i (12,), by S38:
-        # N^T [l; 0] = [Ad_{exp(-xi d)}[:3]^T l; 0] + xi P(d)^T T(xi d)[:3]^T l
-        def station(t, c, load):
-            left = lie.adjoint_se3(lie.exp_se3(-t * d))[:3]
-            return c * (left.T @ load), (c * t) * (lie.tangent_se3(t * d)[:3].T @ load)
-
-        rigid, through = jax.vmap(station)(xi, weights, local)
-        return (jnp.concatenate([rigid.sum(0), jnp.zeros(6, d.dtype)])
-                + element.strain_map(d).T @ through.sum(0))
-
-    geometric, value = jax.jacfwd(lambda d: (pulled(d),) * 2, has_aux=True)(el.d)
-    maps = jax.vmap(lambda t: element.velocity_field_map(t, el.d, el.P))(xi)
+    geometric, value = jax.jacfwd(lambda d: (_pulled(d, xi, weights, local),) * 2,
+                                  has_aux=True)(el.d)
     moved = jnp.concatenate([jnp.einsum("sji,sjk,skl->sil", R, H, R),
                              jax.vmap(lie.skew)(local)], axis=2)            # (S,3,6)
     direct = jnp.einsum("s,sai,sab,sbj->ij", weights, maps[:, :3, :], moved, maps)
-    return -value, -(direct + geometric @ el.P)
+    K = direct + geometric @ el.P
+    if not rate:
+        return -value, -K, None
+    damp = jnp.einsum("sji,sjk,skl->sil", R, D, R)                         # R^T D R
+    a = (maps @ el.ve)[:, :3]
+    # J_i = d a_i / d d at fixed v_e (P = strain_map(d) moves with d too)
+    J = jax.jacfwd(lambda d: jax.vmap(lambda t: (element.velocity_field_map(
+        t, d, element.strain_map(d)) @ el.ve)[:3])(xi))(el.d)              # (S,3,6)
+    spin = (-jnp.einsum("sab,sbj->saj", jax.vmap(lie.skew)(a), maps[:, 3:, :])
+            + J @ el.P)                                                     # (S,3,12)
+    K = K + jnp.einsum("s,sai,sab,sbj->ij", weights, maps[:, :3, :], damp, spin)
+    C = jnp.einsum("s,sai,sab,sbj->ij", weights, maps[:, :3, :], damp, maps[:, :3, :])
+    return -value, -K, -C
 
 
 def energy(RA, pA, RB, pB, data: ContactData, length, kinds: tuple, n: int):

@@ -16,6 +16,16 @@ section is left out). The
 dynamics refuse such a step: it is sub-stepped (:func:`~.newton.advance`), and where
 the smallest sub-step is still too long the run fails with the cause
 ``CONTACT_UNRESOLVED``.
+
+With the normal contact damping (``[contact] damping_ratio``, (D1) of
+:mod:`simsoft_jax.physics.terms.contact`) a long step is refused only when it throws a
+station back: a touching station that ends the step leaving the obstacle (``v_n > 0``)
+faster than it moved along the normal at the step's start, by more than the same
+``eps / (2 h)``. The implicit step over an impact it does not resolve puts the rod where
+the penalty balances the loads (the damped penalty leaves it no rebound to catch up with),
+so its energy does not grow and the step stands; a step that gains normal speed at a
+contact (the rebound of an unresolved, too stiff impact) is sub-stepped as before. A
+station that keeps moving into or along the obstacle is no rebound.
 """
 from __future__ import annotations
 
@@ -61,7 +71,8 @@ def stations(model, state):
 
 def unresolved(model, before, after, h) -> jax.Array:
     """Whether the step of size ``h`` (s) from the state ``before`` to ``after``
-    (:class:`~.scheme.State`) is an impact too fast for the step (module docstring);
+    (:class:`~.scheme.State`) is an impact too fast for the step (with contact damping:
+    a rebound, module docstring);
     False without obstacles. The stations are evaluated only for a step longer than
     ``t_c / RESOLUTION``."""
     if not model.structure.obstacle_kinds:
@@ -71,6 +82,8 @@ def unresolved(model, before, after, h) -> jax.Array:
         (pen0, vn0), (pen1, vn1) = stations(model, before), stations(model, after)
         eps = contact.SMOOTHING * model.contact_radius[:, None, None]
         touching = jnp.maximum(pen0, pen1) > 0.0
+        if model.contact_damping is not None:   # only a rebound is refused
+            return jnp.any(touching & ((vn1 - jnp.abs(vn0)) * h > 0.5 * eps))
         moving = jnp.maximum(jnp.abs(vn0), jnp.abs(vn1)) * h > 0.5 * eps
         return jnp.any(touching & moving)
 
