@@ -1,8 +1,10 @@
 """Cost of rod-rod contact (``[contact] self = true``): two crossing rods, clamped at both
 ends, the upper one pushed onto the lower at its middle by a force, solved with and
 without rod-rod contact (without it the rods pass through each other: same rods, loads
-and solver), per solve and per Newton iteration; and the broad phase alone on a long
-unfolded helix, per element, for growing element counts (near O(N)).
+and solver), per solve and per Newton iteration, statically and dynamically (the force
+pressing from rest, ``DYNAMIC_STEPS`` steps of ``DYNAMIC_DT``; the dynamics find the
+candidate pairs once per step, the statics at every iterate); and the broad phase alone
+on a long unfolded helix, per element, for growing element counts (near O(N)).
 
     PYTHONPATH=. python benchmarks/rod_contact_cost.py [--quick] [--out DIR]
 
@@ -26,9 +28,10 @@ import simsoft_jax as sj  # noqa: E402
 from simsoft_jax.couplings import rod_pairs  # noqa: E402
 
 L, R_C, F = 0.2, 0.005, 10.0
+DYNAMIC_DT, DYNAMIC_STEPS = 2e-3, 50   # s, steps of the dynamic case
 
 
-def crossing(elements: int, self_contact: bool) -> dict:
+def crossing(elements: int, self_contact: bool, dynamic: bool = False) -> dict:
     def rod(name, along_y, z):
         return {"name": name, "elements": elements,
                 "geometry": {"kind": "straight", "length": L},
@@ -38,7 +41,9 @@ def crossing(elements: int, self_contact: bool) -> dict:
                               "EIz": 1.0},
                 "inertia": {"rhoA": 1.0, "rhoJ": 1e-6, "rhoIy": 1e-6, "rhoIz": 1e-6}}
 
-    return {"solver": {"kind": "static", "load_steps": 5},
+    solver = ({"kind": "dynamic", "dt": DYNAMIC_DT, "t_end": DYNAMIC_DT * DYNAMIC_STEPS,
+               "rho_inf": 0.0} if dynamic else {"kind": "static", "load_steps": 5})
+    return {"solver": solver,
             "rods": [rod("top", False, 2 * R_C), rod("bottom", True, 0.0)],
             "constraints": [{"kind": "clamp", "rod": r, "node": n}
                             for r in ("top", "bottom") for n in (0, -1)],
@@ -56,6 +61,19 @@ def solve_cost(d: dict, repeats: int) -> dict:
     its = int(eq.iterations)
     return dict(converged=bool(eq.converged), compile_s=compile_s, wall_s=wall,
                 iterations=its, ms_per_iteration=1e3 * wall / max(its, 1))
+
+
+def dynamic_cost(d: dict, repeats: int) -> dict:
+    model, settings = common.dynamic_setup(sj.Scene.from_dict(d))
+    state = sj.initial_state(model)
+    start = time.perf_counter()
+    _, compiled = common.compile_dynamic(model, settings, state)
+    compile_s = time.perf_counter() - start
+    wall, traj = common.median_time(compiled, model, settings, state, repeats=repeats)
+    its = int(np.sum(traj.iterations))
+    return dict(converged=bool(traj.converged), compile_s=compile_s, wall_s=wall,
+                iterations=its, its_per_step=its / DYNAMIC_STEPS,
+                ms_per_iteration=1e3 * wall / max(its, 1))
 
 
 def broad_phase_cost(elements: int, repeats: int) -> dict:
@@ -88,17 +106,26 @@ def run(out: Path, quick: bool = False) -> dict:
         for self_contact in (True, False):           # alternately, same load
             rows.append(dict(case="rod-rod" if self_contact else "without", elements=elements,
                              **solve_cost(crossing(elements, self_contact), repeats)))
-    common.table(rows, [("case", "case", "s"), ("elements", "elements/rod", "d"),
-                        ("iterations", "its", "d"), ("wall_s", "wall s", ".3f"),
-                        ("ms_per_iteration", "ms/it", ".2f"), ("compile_s", "compile s", ".1f")],
-                 title="two crossing rods pressed together")
+    columns = [("case", "case", "s"), ("elements", "elements/rod", "d"),
+               ("iterations", "its", "d"), ("wall_s", "wall s", ".3f"),
+               ("ms_per_iteration", "ms/it", ".2f"), ("compile_s", "compile s", ".1f")]
+    common.table(rows, columns, title="two crossing rods pressed together (statics)")
+    dynamic = []
+    for elements in ((8,) if quick else (8, 32)):
+        for self_contact in (True, False):
+            dynamic.append(dict(case="rod-rod" if self_contact else "without",
+                                elements=elements, **dynamic_cost(
+                                    crossing(elements, self_contact, dynamic=True), repeats)))
+    common.table(dynamic, columns[:3] + [("its_per_step", "its/step", ".2f")] + columns[3:],
+                 title=f"the same, dynamics ({DYNAMIC_STEPS} steps of {DYNAMIC_DT} s)")
     counts = (100, 400) if quick else (100, 400, 1600)
     broad = [broad_phase_cost(n, repeats) for n in counts]
     common.table(broad, [("elements", "elements", "d"), ("wall_ms", "ms", ".2f"),
                          ("us_per_element", "us/element", ".2f"), ("pairs", "pairs", "d")],
                  title="broad phase on an unfolded helix")
     info["load_average_end"] = common.machine()["load_average"]
-    result = {"machine": info, "crossing": rows, "broad_phase": broad}
+    result = {"machine": info, "crossing": rows, "crossing_dynamic": dynamic,
+              "broad_phase": broad}
     common.save_json(out, "rod_contact_cost", result)
     return result
 

@@ -117,6 +117,19 @@ def test_chain_solves_match_numpy_on_both_paths(n):
     assert rel_err(Kb, K @ b.ravel()) < 1e-14
 
 
+@pytest.mark.parametrize("k", [linalg.TRIANGULAR_COLUMNS, linalg.TRIANGULAR_COLUMNS + 1, 75])
+def test_lu_solve_with_many_right_hand_sides_matches_numpy(k):
+    """``lu_solve`` splits many right-hand sides into chunks (a chunk boundary inside and
+    at an uneven last chunk); both the solve and the transposed solve."""
+    rng = np.random.default_rng(k)
+    A = rng.normal(size=(30, 30)) + 8.0 * np.eye(30)
+    b = rng.normal(size=(30, k))
+    factors = jax.jit(linalg.lu)(jnp.asarray(A))
+    for M, transpose in ((A, False), (A.T, True)):
+        x = linalg.lu_solve(factors, jnp.asarray(b), transpose)
+        assert rel_err(x, np.linalg.solve(M, b)) < 1e-12
+
+
 @pytest.mark.parametrize("n", [5, 20])
 def test_chain_implicit_solve_gradient_is_the_transposed_solve(n):
     rng = np.random.default_rng(10 + n)

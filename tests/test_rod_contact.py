@@ -221,6 +221,51 @@ def test_broad_phase_finds_the_folded_contacts_and_excludes_neighbours():
     assert touching(0, 1) and touching(0, 2)
 
 
+def test_tracked_pairs_hold_every_pair_within_their_motion():
+    """Pairs found once with a motion allowance (the dynamics' broad phase, once per
+    step) against pairs found afresh: the hairpin's upper leg lifted by one element
+    length h (no leg contact there) and tracked with motion 1.01 h; lowered back (every
+    station moves by h), the pairs found there are all among the tracked ones, which
+    :func:`rod_pairs.refresh` keeps; found without the allowance they miss them; lowered
+    by 2 h the pairs are found again there."""
+    n_leg, h = 6, 0.01
+    R, p = _hairpin(n_leg, h)
+    E = len(p) - 1
+    model = build_model(Scene.from_dict({
+        "solver": {"kind": "static"},
+        "rods": [{"name": "hairpin", "elements": E,
+                  "geometry": {"kind": "straight", "length": E * h},
+                  "stiffness": {"EA": 1.0, "GAy": 1.0, "GAz": 1.0, "GJ": 1.0, "EIy": 1.0,
+                                "EIz": 1.0},
+                  "inertia": {"rhoA": 1.0, "rhoJ": 1.0, "rhoIy": 1.0, "rhoIz": 1.0}}],
+        "constraints": [{"kind": "clamp", "rod": "hairpin", "node": 0}],
+        "contact": {"radius": 0.75 * h, "self": True, "max_pairs": 32,
+                    "quadrature_points": 2}}))
+    upper = p[:, 2] > 0.75 * h                                # the upper leg's nodes
+    R, lifted = jnp.asarray(R), jnp.asarray(p + np.outer(upper, [0.0, 0.0, h]))
+
+    def pair_set(pairs):
+        pairs = jax.device_get(pairs)
+        assert not pairs.overflow
+        return {(int(e), int(f)) for e, f, on in zip(pairs.e, pairs.f, pairs.active) if on}
+
+    tracked = jax.jit(rod_pairs.track)(model, R, lifted, 1.01 * h)
+    back = jnp.asarray(p)
+    touching = pair_set(jax.jit(rod_pairs.find_pairs)(model, R, back))
+    between_legs = {(e, f) for e, f in touching if e < n_leg <= f - 2}
+    assert len(between_legs) >= n_leg - 2                     # the legs touch again
+    assert touching <= pair_set(tracked.pairs)
+    assert not between_legs & pair_set(jax.jit(rod_pairs.find_pairs)(model, R, lifted))
+    np.testing.assert_allclose(rod_pairs.moved(model, tracked, R, back), h, rtol=1e-12)
+    kept = jax.jit(rod_pairs.refresh)(model, tracked, R, back)
+    assert pair_set(kept.pairs) == pair_set(tracked.pairs)
+    np.testing.assert_array_equal(kept.stations, tracked.stations)
+    lower = jnp.asarray(p - np.outer(upper, [0.0, 0.0, h]))
+    again = jax.jit(rod_pairs.refresh)(model, tracked, R, lower)
+    assert pair_set(again.pairs) == pair_set(rod_pairs.find_pairs(model, R, lower, 1.01 * h))
+    np.testing.assert_allclose(again.stations, rod_pairs.stations(model, R, lower))
+
+
 def test_dynamic_rod_contact_with_a_sliding_drive_or_a_displaced_tendon_is_read():
     """Both combine with rod-rod contact in dynamics (tests/test_coupling_tendons.py)."""
     dynamic = {"kind": "dynamic", "dt": 0.01, "t_end": 0.02}

@@ -73,13 +73,15 @@ def with_multipliers(model, y):
     return tendon_lengths.with_tensions(model, y[_joint_sizes(model.structure)[1]:])
 
 
-def couple(model, R, p, y, r, blocks, T=None, slide=None) -> Coupled:
+def couple(model, R, p, y, r, blocks, T=None, slide=None, pairs=None) -> Coupled:
     """The bordered Newton system at frames (R, p) and multipliers y (M,), from the chains'
     residual r (N,6) and tangent ``blocks`` (held dofs already identity rows; the rods'
     terms of :func:`with_multipliers`), the couplings' own forces not yet in r. ``T``
     (N,6,6): the maps ``T_SE3(w)`` when the unknowns are a time step's increments w (None
     in statics). ``slide``: the sliding drives' maps ``(C, B, mask)`` that reduced r and
-    the blocks (:func:`simsoft_jax.couplings.drives.slide_maps`; None: none). Without couplings
+    the blocks (:func:`simsoft_jax.couplings.drives.slide_maps`; None: none). ``pairs``:
+    the rod-rod contact's candidate pairs (:func:`simsoft_jax.couplings.rod_pairs.residual`;
+    None: found at R, p). Without couplings
     (:func:`present`) the border is empty, ``r_z`` is y and the frames are not read.
     The kinds concatenate their borders: the rod-rod contact's pair terms are added to
     the whole nodal system first, then the joints take their coupling nodes' rows and
@@ -88,7 +90,7 @@ def couple(model, R, p, y, r, blocks, T=None, slide=None) -> Coupled:
     s = model.structure
     borders = []
     if s.self_contact:
-        r, blocks, contact = rod_pairs.system(model, R, p, r, blocks, T, slide)
+        r, blocks, contact = rod_pairs.system(model, R, p, r, blocks, T, slide, pairs)
         borders.append((contact.B, contact.C, contact.D,
                         jnp.zeros(contact.D.shape[0], r.dtype)))
     if tendon_lengths.count(s):
@@ -129,15 +131,16 @@ def _appended(structure, first: Coupled, B2, C2, D2, r_z2) -> Coupled:
     return Coupled(first.r, first.blocks, B, C, D, jnp.concatenate([first.r_z, r_z2]))
 
 
-def coupled_residual(model, R, p, y, r, slide=None):
+def coupled_residual(model, R, p, y, r, slide=None, pairs=None):
     """``(r, r_z)`` of :func:`couple` without the matrix: the couplings' forces added to r
     (N,6) and their own residuals r_z (zero rows for rod-rod contact, whose border rows
-    hold exactly in every solve; the tendons' length mismatches)."""
+    hold exactly in every solve; the tendons' length mismatches); ``pairs`` as in
+    :func:`couple`."""
     s = model.structure
     if not present(s):
         return r, y
     if s.self_contact:
-        r = r + rod_pairs.residual(model, R, p, slide)
+        r = r + rod_pairs.residual(model, R, p, slide, pairs)
     _, multipliers = _joint_sizes(s)
     if s.joints:
         r, r_z = mechanisms.residual(model, R, p, y[:multipliers], r)

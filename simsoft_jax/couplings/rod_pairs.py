@@ -92,23 +92,34 @@ def _joint_distances(structure, s0, s1):
     return jnp.stack(out, axis=1)
 
 
-def find_pairs(model, R, p) -> Pairs:
-    """The candidate element pairs at frames R (N,3,3), p (N,3)."""
+def stations(model, R, p):
+    """The contact stations (E, m+1, 3) of every element at frames R (N,3,3), p (N,3)
+    (:func:`simsoft_jax.physics.terms.rod_contact.stations`); every point of the pair
+    terms' sub-chords is a convex combination of them."""
+    m = model.structure.contact_points
+    return jax.vmap(lambda RA, pA, RB, pB, L: rod_contact.stations(RA, pA, RB, pB, L, m))(
+        *element_poses(model, R, p), model.length)
+
+
+def find_pairs(model, R, p, motion=0.0) -> Pairs:
+    """The candidate element pairs at frames R (N,3,3), p (N,3). ``motion`` (m, >= 0):
+    every element's bounding sphere and chord distance test widened by it, so that the
+    pairs also hold every pair that can touch after each station has moved by at most
+    ``motion`` (:func:`track`)."""
     s = model.structure
     m = s.contact_points
-    X = jax.vmap(lambda RA, pA, RB, pB, L: rod_contact.stations(RA, pA, RB, pB, L, m))(
-        *element_poses(model, R, p), model.length)
+    X = stations(model, R, p)
     # jnp: a model built on the host (NumPy leaves, sj.run) may be closed over in a traced
     # function, where NumPy arrays cannot be indexed by the traced pair indices
     reach = rod_contact.EXTENSION * jnp.asarray(model.length) / m
-    centre, radius = broad_phase.bounding_spheres(X, model.contact_radius, reach)
+    centre, radius = broad_phase.bounding_spheres(X, model.contact_radius, reach + motion)
     # the stations' largest distance from the chord: every sub-chord (extended) lies
     # within ``bow + reach`` of the chord (extended by ``reach``)
     chord = X[:, -1] - X[:, 0]
     along = jnp.sum((X - X[:, :1]) * chord[:, None], -1) / jnp.sum(chord**2, -1)[:, None]
     bow = jnp.sqrt(jnp.max(jnp.sum((X - X[:, :1] - along[..., None] * chord[:, None]) ** 2,
                                    -1), 1))
-    margin = bow + reach + model.contact_radius
+    margin = bow + reach + model.contact_radius + motion
     grow = reach / model.length
 
     def near_pair(e, f):
@@ -129,6 +140,41 @@ def find_pairs(model, R, p) -> Pairs:
     return Pairs(e, f, active, overflow, nodes)
 
 
+class Tracked(NamedTuple):
+    """Candidate pairs found once for many evaluations (:func:`track`): the pairs, the
+    stations (E, m+1, 3) m where they were found and the motion (m) they allow."""
+    pairs: Pairs
+    stations: jax.Array
+    motion: jax.Array
+
+
+def track(model, R, p, motion) -> Tracked:
+    """The candidate pairs at frames R, p that stay valid while no station moves further
+    than ``motion`` (m) from where it is now (:func:`find_pairs`; motion 0 where the
+    widened pairs overflow ``max_pairs``); :func:`refresh` finds them again when one has."""
+    motion = jnp.asarray(motion, jnp.asarray(p).dtype)
+    wide = find_pairs(model, R, p, motion)
+    # more pairs than max_pairs hold: the pairs at R, p alone (motion 0, found again at
+    # every other frame), which overflow only where the contact itself does
+    pairs = jax.lax.cond(wide.overflow, lambda: find_pairs(model, R, p), lambda: wide)
+    return Tracked(pairs, stations(model, R, p), jnp.where(wide.overflow, 0.0, motion))
+
+
+def moved(model, tracked: Tracked, R, p):
+    """The largest distance (m) a station has moved at frames R, p since ``tracked``'s
+    pairs were found; they hold every touching pair while it is at most ``tracked.motion``
+    (the pair terms' points are convex combinations of the stations)."""
+    return jnp.sqrt(jnp.max(jnp.sum((stations(model, R, p) - tracked.stations) ** 2, -1)))
+
+
+def refresh(model, tracked: Tracked, R, p) -> Tracked:
+    """``tracked`` if its pairs still hold at frames R, p (:func:`moved`), else the pairs
+    found again there with the same motion: the broad phase runs only when a station has
+    moved further than the motion allowed (``lax.cond``: no work otherwise)."""
+    return jax.lax.cond(moved(model, tracked, R, p) > tracked.motion,
+                        lambda: track(model, R, p, tracked.motion), lambda: tracked)
+
+
 def _pair_args(model, R, p, pairs: Pairs):
     s = model.structure
     ends = jnp.asarray(rod_end_flags(s))
@@ -137,11 +183,13 @@ def _pair_args(model, R, p, pairs: Pairs):
             jnp.asarray(model.contact_stiffness)[ef], jnp.asarray(model.length)[ef], ends[ef])
 
 
-def residual(model, R, p, slide=None):
+def residual(model, R, p, slide=None, pairs=None):
     """The rod-rod contact residual (N,6) (held dofs zeroed, sliding drives reduced with
-    ``slide``, :func:`simsoft_jax.couplings.drives.restrict`; NaN on overflow)."""
+    ``slide``, :func:`simsoft_jax.couplings.drives.restrict`; NaN on overflow) on the
+    candidate ``pairs`` (:class:`Pairs`; None: found at R, p; given, they must hold every
+    touching pair: :func:`refresh`)."""
     s = model.structure
-    pairs = find_pairs(model, R, p)
+    pairs = find_pairs(model, R, p) if pairs is None else pairs
     m = s.contact_points
 
     g = jax.vmap(lambda *a: rod_contact.pair_residual(*a, m))(
@@ -162,7 +210,7 @@ class Coupling(NamedTuple):
     D: jax.Array
 
 
-def system(model, R, p, r, blocks, T=None, slide=None):
+def system(model, R, p, r, blocks, T=None, slide=None, pairs=None):
     """Add the rod-rod contact to a masked residual ``r`` (N,6) and block-tridiagonal
     tangent ``blocks`` (held dofs already identity rows): returns ``(r, blocks,
     Coupling)`` of the bordered Newton system (module docstring). ``T`` (N,6,6): the
@@ -170,9 +218,10 @@ def system(model, R, p, r, blocks, T=None, slide=None):
     multiply each node's columns of the pairs' tangents (None: statics, identity).
     ``slide``: the sliding drives' maps of a dynamic step (the chains reduced by them,
     :func:`simsoft_jax.couplings.drives.slide_maps`), which reduce the contact's terms
-    and border alike (:func:`~simsoft_jax.couplings.drives.restrict`); None: none."""
+    and border alike (:func:`~simsoft_jax.couplings.drives.restrict`); None: none.
+    ``pairs``: the candidate pairs, as in :func:`residual`."""
     s = model.structure
-    pairs = find_pairs(model, R, p)
+    pairs = find_pairs(model, R, p) if pairs is None else pairs
     m = s.contact_points
     g, k = jax.vmap(lambda *a: rod_contact.pair_residual_and_tangent(*a, m))(
         *_pair_args(model, R, p, pairs))

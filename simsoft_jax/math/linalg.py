@@ -97,19 +97,39 @@ def lu(A):
     return factors.T, perm.astype(jnp.uint32)   # unsigned: its gathers wrap no index
 
 
+# Right-hand sides per triangular solve: XLA's CPU triangular solve takes ~16 ms, whatever
+# the size, from about 48 right-hand sides on (measured on the 2-core development machine
+# under load: a 24x24 factor with 32 columns 7 us, with 54 columns 16 ms; a 108x108 one
+# with 108 columns 16-19 ms against 12 us in chunks of 32), which made the K^-1 B of
+# rod-rod contact (108 columns, :func:`factorize_coupled`) 30x dearer than the rest of
+# a Newton iteration (benchmarks/rod_contact_cost.py).
+TRIANGULAR_COLUMNS = 32
+
+
+def _triangular(f, x, **options):
+    """``jax.lax.linalg.triangular_solve(f, x, left_side=True, **options)`` on x (n, k),
+    ``TRIANGULAR_COLUMNS`` columns at a time."""
+    tri = functools.partial(jax.lax.linalg.triangular_solve, f, left_side=True, **options)
+    k = x.shape[1]
+    if k <= TRIANGULAR_COLUMNS:
+        return tri(x)
+    return jnp.concatenate([tri(x[:, i:i + TRIANGULAR_COLUMNS])
+                            for i in range(0, k, TRIANGULAR_COLUMNS)], axis=1)
+
+
 def lu_solve(factors, b, transpose=False):
     """Solve ``A x = b`` (or ``A^T x = b``) with ``factors = lu(A)``; b (n,) or (n, k)."""
     f_t, perm = factors
     f = f_t.T
-    tri = jax.lax.linalg.triangular_solve
+    tri = functools.partial(_triangular, f)
     x = b if b.ndim == 2 else b[:, None]
     if transpose:  # A^T = U^T L^T P: solve U^T, then L^T, then undo the permutation
-        x = tri(f, x, left_side=True, lower=False, transpose_a=True)
-        x = tri(f, x, left_side=True, lower=True, unit_diagonal=True, transpose_a=True)
+        x = tri(x, lower=False, transpose_a=True)
+        x = tri(x, lower=True, unit_diagonal=True, transpose_a=True)
         x = jnp.zeros_like(x).at[perm].set(x)
     else:
-        x = tri(f, x[perm], left_side=True, lower=True, unit_diagonal=True)
-        x = tri(f, x, left_side=True, lower=False)
+        x = tri(x[perm], lower=True, unit_diagonal=True)
+        x = tri(x, lower=False)
     return x if b.ndim == 2 else x[:, 0]
 
 

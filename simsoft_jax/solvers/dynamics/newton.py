@@ -15,7 +15,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from ...couplings import coupling
+from ...couplings import coupling, rod_pairs
 from ...physics import stick_slip
 from ..batched import any_lane, select
 from ...math.linalg import CoupledFactors, factorize_coupled, implicit_solve_coupled
@@ -45,6 +45,10 @@ _CONTRACTION_LIMIT = 0.1
 # scene from 894 to 778 Newton iterations and silicone from 1051 to 871 (0.01-0.05 all
 # gain); with it, a rebuild limit of 0.2 saves builds (synthetic 16.2 -> 15.0 ms).
 _RENEW_CONTRACTION = 0.03
+# Rod-rod contact: the candidate pairs are found once per step at the predicted state,
+# for stations moving up to the predicted motion plus this fraction of the largest
+# contact radius (m) from there; again only where an iterate moves one further.
+_PAIR_MOTION_FLOOR = 0.1
 
 
 class _NewtonCarry(NamedTuple):
@@ -52,7 +56,9 @@ class _NewtonCarry(NamedTuple):
     running, else a Status code), the factors in use and whether to rebuild them (fresh),
     the size of the last kept correction (previous), whether the matrix was rebuilt in
     this step (rebuilt), the weighted residual norm at the last iterate, the joint
-    multipliers mu (M,), and the last observed contraction theta (0 before there is one)."""
+    multipliers mu (M,), the last observed contraction theta (0 before there is one), and
+    the rod-rod contact's candidate pairs (:class:`~simsoft_jax.couplings.rod_pairs.Tracked`,
+    None without rod contact)."""
     w: jax.Array
     iterations: jax.Array
     status: jax.Array
@@ -63,6 +69,7 @@ class _NewtonCarry(NamedTuple):
     residual: jax.Array
     mu: jax.Array
     theta: jax.Array
+    tracked: object = None
 
 
 class StepResult(NamedTuple):
@@ -104,9 +111,15 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     joint multipliers (index-3 form, Arnold & Bruls 2007: the constraints ``g(q_{n+1}) = 0``
     and forces ``G^T mu`` at ``t_{n+1}``), solved in the bordered system of
     :mod:`simsoft_jax.couplings.mechanisms`; converged also needs the joints to hold to the
-    tolerance at the current iterate.
+    tolerance at the current iterate. Rod-rod contact's candidate pairs are found once, at
+    the predicted increment, widened for the stations' predicted motion in the step
+    (``_PAIR_MOTION_FLOOR``), and found again only at an iterate where a station has moved
+    further (:func:`~simsoft_jax.couplings.rod_pairs.refresh`): every residual and matrix is
+    evaluated on pairs that hold every touching pair, so the solution is that of pairs
+    found at every iterate.
     """
-    fns = step_functions(model, inert, settings.rho_inf, state, h, settings.tangent)
+    functions = fns = step_functions(model, inert, settings.rho_inf, state, h,
+                                     settings.tangent)
     mask = model.structure.free_mask()
     alpha_m, alpha_f, _, beta = alpha_parameters(settings.rho_inf)
     w0 = predicted_increment(state.v, state.vd, state.a, h, memory, alpha_m, alpha_f, beta)
@@ -122,6 +135,14 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
         * w0, w0)
     sliding = bool(model.structure.slide_drives)
     identity = model.structure.identity_nodes()
+    contact = model.structure.self_contact
+    if contact:   # rod-rod contact's broad phase out of the loop (_PAIR_MOTION_FLOOR)
+        guess = fns.new_state(w0)
+        predicted = jnp.sqrt(jnp.max(jnp.sum(
+            (rod_pairs.stations(model, guess.R, guess.p)
+             - rod_pairs.stations(model, state.R, state.p)) ** 2, -1)))
+        tracked = rod_pairs.track(model, guess.R, guess.p, predicted + _PAIR_MOTION_FLOOR
+                                  * jnp.max(jnp.asarray(model.contact_radius)))
     # Stick-slip friction: exact Newton can cycle between a station's two sliding
     # directions (its friction saturated at mu f_n both ways, flat in between iterates,
     # while the solution sticks); halving a correction that does not shrink breaks the
@@ -138,6 +159,12 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
         return True if violation is None else violation[1] <= settings.tolerance
 
     def body(c: _NewtonCarry) -> _NewtonCarry:
+        fns, tracked = functions, c.tracked
+        if contact:   # the pairs hold at w (found again if a station moved too far)
+            now = functions.new_state(c.w)
+            tracked = rod_pairs.refresh(model, c.tracked, now.R, now.p)
+            fns = step_functions(model, inert, settings.rho_inf, state, h, settings.tangent,
+                                 tracked.pairs)
         r, r_z = fns.system_residual(c.w, c.mu)  # once; the branch builds only the matrix
         # a branch also under vmap (any_lane): lanes that keep their matrix select it back
         factors = jax.lax.cond(
@@ -180,7 +207,8 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
         return _NewtonCarry(w_new, c.iterations + 1, status, factors, rebuild,
                             jnp.where(reject, c.previous, size), c.rebuilt | rebuild,
                             weighted_norm(model, r), mu_new,
-                            jnp.where(reject | ~jnp.isfinite(c.previous), c.theta, theta))
+                            jnp.where(reject | ~jnp.isfinite(c.previous), c.theta, theta),
+                            tracked)
 
     stale = memory.renew | (jnp.abs(memory.h - h) > 1e-9 * h)
     # drives that turn by pi/2 or more in the step: off the branch before any iteration
@@ -188,7 +216,7 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
                        RUNNING) if model.structure.drive_nodes else RUNNING)
     init = _NewtonCarry(w0, jnp.array(0), jnp.asarray(start), memory.factors, stale,
                         jnp.array(jnp.inf), jnp.array(False), jnp.array(jnp.inf),
-                        memory.multipliers, jnp.array(0.0))
+                        memory.multipliers, jnp.array(0.0), tracked if contact else None)
     c = iterate(body, init)
     memory = memory._replace(
         factors=c.factors, h=jnp.asarray(h, jnp.float64),

@@ -115,9 +115,11 @@ def border_sizes(structure) -> tuple[int, int]:
 
 
 def step_functions(model, inert, rho_inf, state: State, h,
-                   tangent: str = "closed_form") -> StepFunctions:
+                   tangent: str = "closed_form", pairs=None) -> StepFunctions:
     """F(w) pieces for one step of size h from ``state`` (spec S66); ``tangent`` picks the
-    iteration matrix's element-block path."""
+    iteration matrix's element-block path; ``pairs``: the rod-rod contact's candidate
+    pairs (:class:`simsoft_jax.couplings.rod_pairs.Pairs`, holding every pair that touches
+    at the ``w`` evaluated; None: found at each ``w``)."""
     beta_p, gamma_p = iteration_factors(rho_inf, h)
     t1 = state.t + h
     loaded = stick_slip.anchored(loads_at(model, t1), state.anchor, t1)
@@ -154,7 +156,7 @@ def step_functions(model, inert, rho_inf, state: State, h,
             return r, mu
         s1 = new_state(w)
         return coupling.coupled_residual(coupling.with_multipliers(loaded, mu), s1.R, s1.p,
-                                         mu, r, slide(w))
+                                         mu, r, slide(w), pairs)
 
     def system(w, mu):
         r, blocks = residual_and_matrix(w, mu)
@@ -162,7 +164,7 @@ def step_functions(model, inert, rho_inf, state: State, h,
             return coupling.couple(loaded, None, None, mu, r, blocks)
         s1 = new_state(w)
         return coupling.couple(coupling.with_multipliers(loaded, mu), s1.R, s1.p, mu, r,
-                               blocks, jax.vmap(lie.tangent_se3)(w), slide(w))
+                               blocks, jax.vmap(lie.tangent_se3)(w), slide(w), pairs)
 
     return StepFunctions(new_state, newton_residual, residual_and_matrix,
                          system_residual, system, t1)
