@@ -46,10 +46,11 @@ SAMPLES = 8             # parts of the swept path tested one by one
 HALVINGS = 30           # cut_back halves an update at most this many times
 
 
-def checked(model) -> bool:
-    """Whether the model has anything an update could pass through (static)."""
+def checked(model, obstacles_too: bool = True) -> bool:
+    """Whether the model has anything an update could pass through (static): rod-rod
+    contact, or obstacles when ``obstacles_too``."""
     s = model.structure
-    return bool(s.obstacle_kinds) or bool(s.self_contact)
+    return (obstacles_too and bool(s.obstacle_kinds)) or bool(s.self_contact)
 
 
 def chord_pairs(structure):
@@ -115,32 +116,34 @@ def obstacles_pass(model, p0, p1, rows=None):
     return out
 
 
-def passes(model, p0, p1, rows=None):
-    """Whether the update of the node positions p0 -> p1 (N,3) carries a rod through an
-    obstacle or another rod, swept in SAMPLES parts (module docstring); False when the
-    model has neither."""
-    if not checked(model):
+def passes(model, p0, p1, rows=None, obstacles_too: bool = True):
+    """Whether the update of the node positions p0 -> p1 (N,3) carries a rod through
+    another rod or (``obstacles_too``) an obstacle, swept in SAMPLES parts (module
+    docstring); False when the model has neither."""
+    if not checked(model, obstacles_too):
         return jnp.array(False)
     t = jnp.linspace(0.0, 1.0, SAMPLES + 1)[:, None, None]
     x = (1.0 - t) * p0 + t * p1
 
-    out = jnp.any(jax.vmap(lambda b: obstacles_pass(model, p0, b, rows))(x[1:]))
+    out = jnp.array(False)
+    if obstacles_too:
+        out = jnp.any(jax.vmap(lambda b: obstacles_pass(model, p0, b, rows))(x[1:]))
     if model.structure.self_contact:
         out = out | jnp.any(jax.vmap(lambda a, b: rods_pass(model, a, b))(x[:-1], x[1:]))
     return out
 
 
-def cut_back(model, p0, moved, fraction, rows=None):
+def cut_back(model, p0, moved, fraction, rows=None, obstacles_too: bool = True):
     """The largest ``fraction / 2^k`` (k = 0 .. HALVINGS) of an update whose end state
     ``moved(fraction)`` (node positions (N,3)) does not pass through (:func:`passes`)
     from p0; the last one tried when every one does. ``fraction`` unchanged without
-    obstacles or rod contact."""
-    if not checked(model):
+    rod contact and (``obstacles_too``) obstacles."""
+    if not checked(model, obstacles_too):
         return fraction
 
     def cond(c):
         step, k = c
-        return (k < HALVINGS) & passes(model, p0, moved(step), rows)
+        return (k < HALVINGS) & passes(model, p0, moved(step), rows, obstacles_too)
 
     return jax.lax.while_loop(cond, lambda c: (0.5 * c[0], c[1] + 1), (fraction, 0))[0]
 

@@ -24,7 +24,6 @@ from ..newton import (RUNNING, capped, coupled_step, implicit, iterate, ladder, 
                       weighted_norm)
 from .. import swept_check
 from ..status import Status
-from ...model.loads import loads_at
 from .contact_time import unresolved
 from .memory import NewtonMemory, predicted_increment, remember_step
 from .residual import step_functions
@@ -95,9 +94,10 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     at the start of a step when the previous step rebuilt it or ended with a contraction
     above ``_RENEW_CONTRACTION``. With a fresh matrix the iteration is exact Newton.
     Approximating ``S_t`` changes only the convergence rate, not the solution (spec 4.4).
-    The predictor and every correction are cut back (halved) until they do not carry a
-    rod through an obstacle or another rod (:mod:`simsoft_jax.solvers.swept_check`); a
-    cut correction never counts as converged.
+    With rod-rod contact the predictor and every correction are cut back (halved) until
+    they do not carry a rod through another rod
+    (:mod:`simsoft_jax.solvers.swept_check`); a cut correction never counts as
+    converged.
     Converged when the estimated distance to the solution, ``|dw| theta / (1 - theta)``
     with the observed contraction ``theta`` (``|dw|`` itself at the first iteration and
     for ``theta`` above ``_CONTRACTION_LIMIT``), is below the tolerance and every nodal
@@ -124,15 +124,15 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     alpha_m, alpha_f, _, beta = alpha_parameters(settings.rho_inf)
     w0 = predicted_increment(state.v, state.vd, state.a, h, memory, alpha_m, alpha_f, beta)
     w0 = jnp.where(mask > 0, w0, held_increments(model, state, fns.t1))
-    # no update carries a rod through an obstacle (at t1) or another rod: cut back
-    rows = loads_at(model, fns.t1).obstacles if swept_check.checked(model) else None
+    # no update carries a rod through another rod: cut back (impacts on obstacles are
+    # refused by the contact time, :mod:`.contact_time`)
 
     def positions(w):
         return swept_check.update_positions(state.R, state.p, w)
 
     w0 = jnp.where(mask > 0, swept_check.cut_back(
-        model, state.p, lambda t: positions(jnp.where(mask > 0, t * w0, w0)), 1.0, rows)
-        * w0, w0)
+        model, state.p, lambda t: positions(jnp.where(mask > 0, t * w0, w0)), 1.0,
+        obstacles_too=False) * w0, w0)
     sliding = bool(model.structure.slide_drives)
     identity = model.structure.identity_nodes()
     contact = model.structure.self_contact
@@ -178,7 +178,8 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
         # cap nodal rotation corrections at pi/4 (spec 4.7.6): keeps Newton on the branch
         dw, dmu = capped(0.25 * jnp.pi, dw, dmu)
         fraction = swept_check.cut_back(model, positions(c.w),
-                                        lambda t: positions(c.w + t * dw), 1.0, rows)
+                                        lambda t: positions(c.w + t * dw), 1.0,
+                                        obstacles_too=False)
         dw, dmu = fraction * dw, fraction * dmu
         size = step_norm(model, dw)
         if damped:   # a fresh correction no smaller than the last one is halved
