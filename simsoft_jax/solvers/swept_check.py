@@ -28,7 +28,9 @@ obstacles, and each part for rods:
   tested (their common normal is not defined).
 
 Every pair of chords is tested (no broad phase: the update may move a rod farther than
-any margin), O(SAMPLES E^2) cheap operations per check.
+any margin), O(SAMPLES E^2) cheap operations per check, but only for an update that
+moves some node by more than half the smallest contact radius: a smaller one changes
+the gap of two chords by less than r, so none crosses to the other side.
 """
 from __future__ import annotations
 
@@ -77,21 +79,22 @@ def _line_gap(a0, a1, b0, b1):
     return n, jnp.dot(r, n), s, t, sine
 
 
-def rods_pass(model, p0, p1):
-    """Whether some pair of chords (:func:`chord_pairs`) comes closer than one radius,
-    or passes through each other, between the node positions p0 and p1 (N,3) (one part
-    of the sweep, module docstring)."""
+def rods_pass(model, x):
+    """Whether, between consecutive node positions of the sweep ``x`` (S+1, N, 3), some
+    pair of chords (:func:`chord_pairs`) comes closer than one radius, or passes through
+    each other (module docstring). Each state's line gaps are computed once."""
     e, f = chord_pairs(model.structure)
     if not len(e):
         return jnp.array(False)
     a = np.asarray(model.structure.element_nodes)
 
-    def one(x):
-        return jax.vmap(_line_gap)(x[a[e]], x[a[e] + 1], x[a[f]], x[a[f] + 1])
+    def one(y):
+        return jax.vmap(_line_gap)(y[a[e]], y[a[e] + 1], y[a[f]], y[a[f] + 1])
 
-    n0, g0, s0, t0, sin0 = one(p0)
-    n1, g1, s1, t1, sin1 = one(p1)
-    g1 = g1 * jnp.sign(jnp.sum(n0 * n1, axis=1)) * jnp.sign(g0)
+    n, g, s, t, sine = jax.vmap(one)(x)                   # each (S+1, P, ...)
+    n0, g0, s0, t0, sin0 = n[:-1], g[:-1], s[:-1], t[:-1], sine[:-1]
+    n1, g1, s1, t1, sin1 = n[1:], g[1:], s[1:], t[1:], sine[1:]
+    g1 = g1 * jnp.sign(jnp.sum(n0 * n1, axis=-1)) * jnp.sign(g0)
     lo, hi = -OVERLAP * (1.0 - rod_end_flags(model.structure).T)
     hi = 1.0 - hi
     inside = ((s0 >= lo[e]) & (s0 <= hi[e]) & (t0 >= lo[f]) & (t0 <= hi[f])
@@ -129,7 +132,11 @@ def passes(model, p0, p1, rows=None, obstacles_too: bool = True):
     if obstacles_too:
         out = jnp.any(jax.vmap(lambda b: obstacles_pass(model, p0, b, rows))(x[1:]))
     if model.structure.self_contact:
-        out = out | jnp.any(jax.vmap(lambda a, b: rods_pass(model, a, b))(x[:-1], x[1:]))
+        # no node moving by more than half the smallest radius: every pair of chords
+        # stays on its side (their gap changes by less than r), nothing to sweep
+        far = jnp.max(jnp.sum((p1 - p0) ** 2, axis=-1)) > (
+            0.5 * jnp.min(model.contact_radius)) ** 2
+        out = out | jax.lax.cond(far, lambda: rods_pass(model, x), lambda: jnp.array(False))
     return out
 
 
