@@ -143,6 +143,19 @@ def compile_dynamic(model, settings, state):
     return lowered, lowered.compile()
 
 
+def rollout_cost(scene: sj.Scene, repeats: int) -> dict:
+    """Compile time (s) and median wall time (s) of ``scene``'s rollout from its initial
+    state, its total Newton iterations, steps and whether every step converged."""
+    model, settings = dynamic_setup(scene)
+    state = sj.initial_state(model)
+    start = time.perf_counter()
+    _, compiled = compile_dynamic(model, settings, state)
+    compile_s = time.perf_counter() - start
+    wall, traj = median_time(compiled, model, settings, state, repeats=repeats)
+    return dict(converged=bool(traj.converged), compile_s=compile_s, wall_s=wall,
+                iterations=int(np.sum(traj.iterations)), steps=int(settings.steps))
+
+
 def count_hlo_ops(lowered) -> int:
     """Number of operations in a lowered (StableHLO) program: a proxy for compile time."""
     return sum(1 for line in lowered.as_text().splitlines() if " = " in line)

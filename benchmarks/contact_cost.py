@@ -14,7 +14,6 @@ Wall: median of repeated rollouts / solves after compilation. Not a test.
 from __future__ import annotations
 
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -30,15 +29,9 @@ import simsoft_jax as sj  # noqa: E402
 
 
 def rollout_cost(d: dict, repeats: int):
-    model, settings = common.dynamic_setup(sj.Scene.from_dict(d))
-    state = sj.initial_state(model)
-    start = time.perf_counter()
-    _, compiled = common.compile_dynamic(model, settings, state)
-    compile_s = time.perf_counter() - start
-    wall, traj = common.median_time(compiled, model, settings, state, repeats=repeats)
-    steps, iterations = int(settings.steps), int(np.sum(traj.iterations))
-    return dict(converged=bool(traj.converged), compile_s=compile_s, wall_s=wall,
-                ms_per_step=1e3 * wall / steps, iterations_per_step=iterations / steps,
+    cost = common.rollout_cost(sj.Scene.from_dict(d), repeats)
+    steps, iterations, wall = cost.pop("steps"), cost.pop("iterations"), cost["wall_s"]
+    return dict(cost, ms_per_step=1e3 * wall / steps, iterations_per_step=iterations / steps,
                 ms_per_iteration=1e3 * wall / iterations)
 
 

@@ -64,16 +64,9 @@ def solve_cost(d: dict, repeats: int) -> dict:
 
 
 def dynamic_cost(d: dict, repeats: int) -> dict:
-    model, settings = common.dynamic_setup(sj.Scene.from_dict(d))
-    state = sj.initial_state(model)
-    start = time.perf_counter()
-    _, compiled = common.compile_dynamic(model, settings, state)
-    compile_s = time.perf_counter() - start
-    wall, traj = common.median_time(compiled, model, settings, state, repeats=repeats)
-    its = int(np.sum(traj.iterations))
-    return dict(converged=bool(traj.converged), compile_s=compile_s, wall_s=wall,
-                iterations=its, its_per_step=its / DYNAMIC_STEPS,
-                ms_per_iteration=1e3 * wall / max(its, 1))
+    cost = common.rollout_cost(sj.Scene.from_dict(d), repeats)
+    steps, its = cost.pop("steps"), cost["iterations"]
+    return dict(cost, its_per_step=its / steps, ms_per_iteration=1e3 * cost["wall_s"] / max(its, 1))
 
 
 def broad_phase_cost(elements: int, repeats: int) -> dict:

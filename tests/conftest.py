@@ -230,3 +230,21 @@ def crossing_rod(name, x0, length, elements, along_y=False, z=0.0):
             "stiffness": {"EA": 1e7, "GAy": 1e7, "GAz": 1e7, "GJ": 1.0, "EIy": 1.0,
                           "EIz": 1.0},
             "inertia": {"rhoA": 1.0, "rhoJ": 1e-6, "rhoIy": 1e-6, "rhoIz": 1e-6}}
+
+
+# ----------------------------------------------------------------------------- scenes
+def dropped_rod_scene(stiffness, h0=0.05, radius=0.02, dt=1e-2, t_end=0.6, g=9.81):
+    """A straight rod (10 elements, 0.5 m, rhoA 0.5 kg/m) lying at height ``h0`` (m)
+    above a floor plane that its centreline touches at z = 0 (plane at ``-radius``), let
+    fall under gravity ``g`` (m/s^2) on a contact penalty of ``stiffness`` (N/m^2)."""
+    return {"solver": {"kind": "dynamic", "t_end": t_end, "dt": dt},
+            "gravity": {"vector": [0.0, 0.0, -g]},
+            "rods": [{"name": "rod", "elements": 10,
+                      "geometry": {"kind": "straight", "length": 0.5},
+                      "base": {"position": [0.0, 0.0, h0]},
+                      "stiffness": {"EA": 1e5, "GAy": 1e5, "GAz": 1e5, "GJ": 1.0, "EIy": 1.0,
+                                    "EIz": 1.0},
+                      "inertia": {"rhoA": 0.5, "rhoJ": 1e-4, "rhoIy": 5e-5, "rhoIz": 5e-5}}],
+            "obstacles": [{"name": "floor", "kind": "plane", "point": [0.0, 0.0, -radius],
+                           "normal": [0.0, 0.0, 1.0]}],
+            "contact": {"radius": radius, "stiffness": stiffness}}

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
+from conftest import dropped_rod_scene
 from simsoft_jax.physics import assembly
 from simsoft_jax.physics.terms import contact
 from simsoft_jax.solvers.dynamics.rollout import energy
@@ -156,18 +157,9 @@ def test_stiff_impact_the_step_cannot_resolve_stands_when_damped():
     throw the rod back, the run converges, and the rod never rises above its drop height
     h0 after the impact (no energy gained; gravity's potential bounds it) and is back on
     the floor at the end (within 2 % of h0)."""
-    h0, g = 0.05, 9.81
-    scene = {"solver": {"kind": "dynamic", "t_end": 0.6, "dt": 1e-2},
-             "gravity": {"vector": [0.0, 0.0, -g]},
-             "rods": [{"name": "rod", "elements": 10,
-                       "geometry": {"kind": "straight", "length": 0.5},
-                       "base": {"position": [0.0, 0.0, h0]},
-                       "stiffness": {"EA": 1e5, "GAy": 1e5, "GAz": 1e5, "GJ": 1.0, "EIy": 1.0,
-                                     "EIz": 1.0},
-                       "inertia": {"rhoA": 0.5, "rhoJ": 1e-4, "rhoIy": 5e-5, "rhoIz": 5e-5}}],
-             "obstacles": [{"name": "floor", "kind": "plane", "point": [0.0, 0.0, -R_CONTACT],
-                            "normal": [0.0, 0.0, 1.0]}],
-             "contact": {"radius": R_CONTACT, "stiffness": 1e9, "damping_ratio": 1.0}}
+    h0 = 0.05
+    scene = dropped_rod_scene(1e9, h0, R_CONTACT)
+    scene["contact"]["damping_ratio"] = 1.0
     res = sj.run(scene)
     assert res.converged
     z = res.positions("rod")[..., 2]

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
+from conftest import dropped_rod_scene
 
 OMEGA, DT, T_END = 100.0, 0.1, 1.0
 R_C, H0, G = 0.02, 0.05, 9.81
@@ -87,18 +88,8 @@ def test_differentiable_rollout_sub_steps_and_its_gradient_is_the_spin_rate():
     assert abs(float(slope) - 3 * DT) < 1e-8
 
 
-def drop(stiffness, dt=1e-2, t_end=0.6):
-    return {"solver": {"kind": "dynamic", "t_end": t_end, "dt": dt},
-            "gravity": {"vector": [0.0, 0.0, -G]},
-            "rods": [{"name": "rod", "elements": 10,
-                      "geometry": {"kind": "straight", "length": 0.5},
-                      "base": {"position": [0.0, 0.0, H0]},
-                      "stiffness": {"EA": 1e5, "GAy": 1e5, "GAz": 1e5, "GJ": 1.0, "EIy": 1.0,
-                                    "EIz": 1.0},
-                      "inertia": {"rhoA": 0.5, "rhoJ": 1e-4, "rhoIy": 5e-5, "rhoIz": 5e-5}}],
-            "obstacles": [{"name": "floor", "kind": "plane", "point": [0.0, 0.0, -R_C],
-                           "normal": [0.0, 0.0, 1.0]}],
-            "contact": {"radius": R_C, "stiffness": stiffness}}
+def drop(stiffness):
+    return dropped_rod_scene(stiffness, H0, R_C, g=G)
 
 
 def test_stiff_contact_the_step_cannot_resolve_is_reported():
