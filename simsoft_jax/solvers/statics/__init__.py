@@ -17,9 +17,11 @@ load), and here the load continuation, the implicit derivative and :func:`solve_
 from __future__ import annotations
 
 import dataclasses
+from functools import partial
 from typing import NamedTuple
 
 import jax
+import jax.interpreters.ad
 import jax.numpy as jnp
 
 import numpy as np
@@ -305,6 +307,47 @@ def differentiable(eq: Equilibrium, model: Model, tangent: str) -> Equilibrium:
     return with_derivative(eq, full_loads(model), tangent)
 
 
+def _solved(eq: Equilibrium):
+    """The differentiated fields of ``eq``: frames, multipliers, tendons' tensions."""
+    return eq.R, eq.p, eq.multipliers, eq.tendon_tension
+
+
+@partial(jax.custom_vjp, nondiff_argnums=(0,))
+def _reverse_only(tangent: str, eq: Equilibrium, model: Model):
+    """:func:`_solved` of :func:`differentiable` with a reverse mode of its own: the
+    backward pass is one program compiled on arrays (:func:`static_cotangent`, with
+    this package's compile options, which a program compiled under JAX's own reverse
+    mode cannot take) instead of the two that JAX's linearize-and-transpose compiles."""
+    return _solved(differentiable(eq, model, tangent))
+
+
+def _reverse_only_forward(tangent, eq, model):
+    return _reverse_only(tangent, eq, model), (eq, model)
+
+
+def _reverse_only_backward(tangent, saved, bar):
+    from ..dynamics.adjoint import differentiated   # the dynamics import this package
+    eq, model = saved
+    _, _, cotangent = differentiated(model, [True] * len(jax.tree_util.tree_leaves(model)))
+    return None, cotangent(static_cotangent(eq, model, bar, tangent))
+
+
+_reverse_only.defvjp(_reverse_only_forward, _reverse_only_backward)
+
+
+@jit(static_argnames="tangent")
+def static_cotangent(eq: Equilibrium, model: Model, bar, tangent: str) -> list:
+    """The cotangents of the float arrays of ``model`` (in the order of its leaves) for
+    the cotangents ``bar`` of :func:`_solved` of ``eq`` with the implicit derivative
+    attached (:func:`with_derivative`, ``tangent`` its tangent path): reverse mode
+    through it, in one program."""
+    from ..dynamics.adjoint import differentiated   # the dynamics import this package
+    floats, rebuild, _ = differentiated(model, [True] * len(jax.tree_util.tree_leaves(model)))
+    _, pullback = jax.vjp(
+        lambda f: _solved(with_derivative(eq, full_loads(rebuild(f)), tangent)), floats)
+    return pullback(bar)[0]
+
+
 def _compiled(model: Model, settings: StaticSettings) -> Equilibrium:
     """The equilibrium of plain arrays by ``sj.run``'s compiled static program for this
     structure (:func:`simsoft_jax.solvers.programs.compiled_static_solver`, the stability count
@@ -314,6 +357,13 @@ def _compiled(model: Model, settings: StaticSettings) -> Equilibrium:
     model = with_arrays(model)
     solver, _ = compiled_static_solver(model, settings)
     return solver(model, as_traced(settings), np.bool_(False))[0]
+
+
+def forward_mode(model: Model) -> bool:
+    """Whether ``model``'s arrays are traced by JAX's forward mode (``jax.jvp``,
+    ``jax.jacfwd``; reverse mode traces them by linearization)."""
+    return any(isinstance(x, jax.interpreters.ad.JVPTracer)
+               for x in jax.tree_util.tree_leaves(model))
 
 
 @jit
@@ -338,16 +388,27 @@ def solve_static(model: Model, settings: StaticSettings = StaticSettings(),
     for both, said on stderr, kept in the cache folder:
     :func:`~simsoft_jax.solvers.programs.compiled_static_solver`) and returns NumPy arrays;
     traced, :func:`static_program`, compiled with the enclosing computation (JAX's
-    persistent cache keeps it, :func:`~simsoft_jax.solvers.compile_cache.enable`).
+    persistent cache keeps it, :func:`~simsoft_jax.solvers.compile_cache.enable`). Under
+    ``jax.grad`` or ``jax.jvp`` (not inside ``jit``) it runs that compiled solve too, and
+    compiles only the derivative: forward mode the tangent program
+    (:func:`differentiable`), reverse mode one backward program
+    (:func:`static_cotangent`). ``jax.linearize`` of it outside ``jit`` is reverse mode
+    only (JAX's custom_vjp error); inside ``jit`` every mode works.
     """
     compile_cache.enable()
     if not traced(model, settings):
         eq = _compiled(model, settings)
     else:   # the program's answer, its derivative attached by a program of its own
         primal = jax.lax.stop_gradient(model)   # plain arrays under an eager grad or jvp
-        eq = (static_program(primal, as_traced(settings)) if traced(primal, settings)
-              else _compiled(primal, settings))
-        eq = differentiable(eq, model, settings.tangent)
+        if traced(primal, settings):
+            eq = differentiable(static_program(primal, as_traced(settings)), model,
+                                settings.tangent)
+        elif forward_mode(model):
+            eq = differentiable(_compiled(primal, settings), model, settings.tangent)
+        else:   # reverse mode (jax.grad, jax.vjp): a backward program of its own
+            eq = _compiled(primal, settings)
+            R, p, y, tension = _reverse_only(settings.tangent, eq, model)
+            eq = eq._replace(R=R, p=p, multipliers=y, tendon_tension=tension)
     if throw:
         raise_if_failed("static", eq.converged, eq.status, eq.cause, eq.load_level,
                         eq.residual_norm)
