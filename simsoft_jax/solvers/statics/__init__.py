@@ -315,9 +315,10 @@ def _solved(eq: Equilibrium):
 @partial(jax.custom_vjp, nondiff_argnums=(0,))
 def _reverse_only(tangent: str, eq: Equilibrium, model: Model):
     """:func:`_solved` of :func:`differentiable` with a reverse mode of its own: the
-    backward pass is one program compiled on arrays (:func:`static_cotangent`, with
-    this package's compile options, which a program compiled under JAX's own reverse
-    mode cannot take) instead of the two that JAX's linearize-and-transpose compiles."""
+    backward pass is one program compiled on arrays and kept in the cache folder
+    (:func:`stored_static_gradient`, with this package's compile options, which a program
+    compiled under JAX's own reverse mode cannot take) instead of the two that JAX's
+    linearization and transpose of the implicit derivative compile."""
     return _solved(differentiable(eq, model, tangent))
 
 
@@ -329,23 +330,46 @@ def _reverse_only_backward(tangent, saved, bar):
     from ..dynamics.adjoint import differentiated   # the dynamics import this package
     eq, model = saved
     _, _, cotangent = differentiated(model, [True] * len(jax.tree_util.tree_leaves(model)))
-    return None, cotangent(static_cotangent(eq, model, bar, tangent))
+    return None, cotangent(stored_static_gradient(tangent, (eq, model, bar))(eq, model, bar))
 
 
 _reverse_only.defvjp(_reverse_only_forward, _reverse_only_backward)
 
 
-@jit(static_argnames="tangent")
 def static_cotangent(eq: Equilibrium, model: Model, bar, tangent: str) -> list:
     """The cotangents of the float arrays of ``model`` (in the order of its leaves) for
     the cotangents ``bar`` of :func:`_solved` of ``eq`` with the implicit derivative
     attached (:func:`with_derivative`, ``tangent`` its tangent path): reverse mode
-    through it, in one program."""
+    through it (spec section 5: one transposed solve with the tangent at ``eq``)."""
     from ..dynamics.adjoint import differentiated   # the dynamics import this package
     floats, rebuild, _ = differentiated(model, [True] * len(jax.tree_util.tree_leaves(model)))
     _, pullback = jax.vjp(
         lambda f: _solved(with_derivative(eq, full_loads(rebuild(f)), tangent)), floats)
     return pullback(bar)[0]
+
+
+def stored_static_gradient(tangent: str, args):
+    """:func:`static_cotangent` compiled for arguments ``args = (eq, model, bar)`` of
+    this structure, shapes and types: once per process (kept in
+    :data:`~simsoft_jax.solvers.programs.PROGRAMS`) and kept in the cache folder, so
+    that a later process loads it instead of tracing and compiling it again
+    (:func:`~simsoft_jax.solvers.compile_cache.compile_stored`; said on stderr when
+    compiled). Call it as ``program(eq, model, bar)``."""
+    from ..programs import PROGRAMS   # it imports this package
+    leaves, tree = jax.tree_util.tree_flatten(args)
+    key = ("static gradient", tangent, tree,
+           tuple((np.shape(x), np.result_type(x).name, bool(getattr(x, "weak_type", False)))
+                 for x in leaves))
+    if key not in PROGRAMS:
+        def static_gradient(eq, model, bar):
+            return static_cotangent(eq, model, bar, tangent)
+
+        from ..dynamics.adjoint import differentiated   # the dynamics import this package
+        floats = differentiated(args[1], [True] * len(jax.tree_util.tree_leaves(args[1])))[0]
+        PROGRAMS[key] = compile_cache.compile_stored(
+            jit(static_gradient), args, jax.tree_util.tree_structure(floats),
+            "static gradient", variant=tangent)
+    return PROGRAMS[key]
 
 
 def _compiled(model: Model, settings: StaticSettings) -> Equilibrium:
@@ -391,9 +415,10 @@ def solve_static(model: Model, settings: StaticSettings = StaticSettings(),
     persistent cache keeps it, :func:`~simsoft_jax.solvers.compile_cache.enable`). Under
     ``jax.grad`` or ``jax.jvp`` (not inside ``jit``) it runs that compiled solve too, and
     compiles only the derivative: forward mode the tangent program
-    (:func:`differentiable`), reverse mode one backward program
-    (:func:`static_cotangent`). ``jax.linearize`` of it outside ``jit`` is reverse mode
-    only (JAX's custom_vjp error); inside ``jit`` every mode works.
+    (:func:`differentiable`), reverse mode one backward program kept in the
+    cache folder (:func:`stored_static_gradient`). ``jax.linearize`` of it outside
+    ``jit`` is reverse mode only (JAX's custom_vjp error); inside ``jit`` every mode
+    works.
     """
     compile_cache.enable()
     if not traced(model, settings):
