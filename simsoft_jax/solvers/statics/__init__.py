@@ -17,9 +17,11 @@ load), and here the load continuation, the implicit derivative and :func:`solve_
 from __future__ import annotations
 
 import dataclasses
+from functools import partial
 from typing import NamedTuple
 
 import jax
+import jax.interpreters.ad
 import jax.numpy as jnp
 
 import numpy as np
@@ -341,6 +343,71 @@ def differentiable(eq: Equilibrium, model: Model, tangent: str) -> Equilibrium:
     return with_derivative(eq, full_loads(model), tangent)
 
 
+def _solved(eq: Equilibrium):
+    """The differentiated fields of ``eq``: frames, multipliers, tendons' tensions."""
+    return eq.R, eq.p, eq.multipliers, eq.tendon_tension
+
+
+@partial(jax.custom_vjp, nondiff_argnums=(0,))
+def _reverse_only(tangent: str, eq: Equilibrium, model: Model):
+    """:func:`_solved` of :func:`differentiable` with a reverse mode of its own: the
+    backward pass is one program compiled on arrays and kept in the cache folder
+    (:func:`stored_static_gradient`, with this package's compile options, which a program
+    compiled under JAX's own reverse mode cannot take) instead of the two that JAX's
+    linearization and transpose of the implicit derivative compile."""
+    return _solved(differentiable(eq, model, tangent))
+
+
+def _reverse_only_forward(tangent, eq, model):
+    return _reverse_only(tangent, eq, model), (eq, model)
+
+
+def _reverse_only_backward(tangent, saved, bar):
+    from ..dynamics.adjoint import differentiated   # the dynamics import this package
+    eq, model = saved
+    _, _, cotangent = differentiated(model, [True] * len(jax.tree_util.tree_leaves(model)))
+    return None, cotangent(stored_static_gradient(tangent, (eq, model, bar))(eq, model, bar))
+
+
+_reverse_only.defvjp(_reverse_only_forward, _reverse_only_backward)
+
+
+def static_cotangent(eq: Equilibrium, model: Model, bar, tangent: str) -> list:
+    """The cotangents of the float arrays of ``model`` (in the order of its leaves) for
+    the cotangents ``bar`` of :func:`_solved` of ``eq`` with the implicit derivative
+    attached (:func:`with_derivative`, ``tangent`` its tangent path): reverse mode
+    through it (spec section 5: one transposed solve with the tangent at ``eq``)."""
+    from ..dynamics.adjoint import differentiated   # the dynamics import this package
+    floats, rebuild, _ = differentiated(model, [True] * len(jax.tree_util.tree_leaves(model)))
+    _, pullback = jax.vjp(
+        lambda f: _solved(with_derivative(eq, full_loads(rebuild(f)), tangent)), floats)
+    return pullback(bar)[0]
+
+
+def stored_static_gradient(tangent: str, args):
+    """:func:`static_cotangent` compiled for arguments ``args = (eq, model, bar)`` of
+    this structure, shapes and types: once per process (kept in
+    :data:`~simsoft_jax.solvers.programs.PROGRAMS`) and kept in the cache folder, so
+    that a later process loads it instead of tracing and compiling it again
+    (:func:`~simsoft_jax.solvers.compile_cache.compile_stored`; said on stderr when
+    compiled). Call it as ``program(eq, model, bar)``."""
+    from ..programs import PROGRAMS   # it imports this package
+    leaves, tree = jax.tree_util.tree_flatten(args)
+    key = ("static gradient", tangent, tree,
+           tuple((np.shape(x), np.result_type(x).name, bool(getattr(x, "weak_type", False)))
+                 for x in leaves))
+    if key not in PROGRAMS:
+        def static_gradient(eq, model, bar):
+            return static_cotangent(eq, model, bar, tangent)
+
+        from ..dynamics.adjoint import differentiated   # the dynamics import this package
+        floats = differentiated(args[1], [True] * len(jax.tree_util.tree_leaves(args[1])))[0]
+        PROGRAMS[key] = compile_cache.compile_stored(
+            jit(static_gradient), args, jax.tree_util.tree_structure(floats),
+            "static gradient", variant=tangent)
+    return PROGRAMS[key]
+
+
 def _compiled(model: Model, settings: StaticSettings) -> Equilibrium:
     """The equilibrium of plain arrays by ``sj.run``'s compiled static program for this
     structure (:func:`simsoft_jax.solvers.programs.compiled_static_solver`, the stability count
@@ -350,6 +417,13 @@ def _compiled(model: Model, settings: StaticSettings) -> Equilibrium:
     model = with_arrays(model)
     solver, _ = compiled_static_solver(model, settings)
     return solver(model, as_traced(settings), np.bool_(False))[0]
+
+
+def forward_mode(model: Model) -> bool:
+    """Whether ``model``'s arrays are traced by JAX's forward mode (``jax.jvp``,
+    ``jax.jacfwd``; reverse mode traces them by linearization)."""
+    return any(isinstance(x, jax.interpreters.ad.JVPTracer)
+               for x in jax.tree_util.tree_leaves(model))
 
 
 @jit
@@ -374,16 +448,28 @@ def solve_static(model: Model, settings: StaticSettings = StaticSettings(),
     for both, said on stderr, kept in the cache folder:
     :func:`~simsoft_jax.solvers.programs.compiled_static_solver`) and returns NumPy arrays;
     traced, :func:`static_program`, compiled with the enclosing computation (JAX's
-    persistent cache keeps it, :func:`~simsoft_jax.solvers.compile_cache.enable`).
+    persistent cache keeps it, :func:`~simsoft_jax.solvers.compile_cache.enable`). Under
+    ``jax.grad`` or ``jax.jvp`` (not inside ``jit``) it runs that compiled solve too, and
+    compiles only the derivative: forward mode the tangent program
+    (:func:`differentiable`), reverse mode one backward program kept in the
+    cache folder (:func:`stored_static_gradient`). ``jax.linearize`` of it outside
+    ``jit`` is reverse mode only (JAX's custom_vjp error); inside ``jit`` every mode
+    works.
     """
     compile_cache.enable()
     if not traced(model, settings):
         eq = _compiled(model, settings)
     else:   # the program's answer, its derivative attached by a program of its own
         primal = jax.lax.stop_gradient(model)   # plain arrays under an eager grad or jvp
-        eq = (static_program(primal, as_traced(settings)) if traced(primal, settings)
-              else _compiled(primal, settings))
-        eq = differentiable(eq, model, settings.tangent)
+        if traced(primal, settings):
+            eq = differentiable(static_program(primal, as_traced(settings)), model,
+                                settings.tangent)
+        elif forward_mode(model):
+            eq = differentiable(_compiled(primal, settings), model, settings.tangent)
+        else:   # reverse mode (jax.grad, jax.vjp): a backward program of its own
+            eq = _compiled(primal, settings)
+            R, p, y, tension = _reverse_only(settings.tangent, eq, model)
+            eq = eq._replace(R=R, p=p, multipliers=y, tendon_tension=tension)
     if throw:
         raise_if_failed("static", eq.converged, eq.status, eq.cause, eq.load_level,
                         eq.residual_norm)
