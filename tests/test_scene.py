@@ -120,7 +120,6 @@ BAD = [
      mutate((("constraints",), [BASE["constraints"][0], {**DRIVE, "times": [1.0, 0.0]}])),
      "constraints[1].times"),
     ("times on a clamp", mutate((("constraints", 0, "times"), [0.0])), "constraints[0].times"),
-    ("static rod not held", mutate((("constraints",), [])), "constraints"),
     ("custom material shadows built-in",
      mutate((("materials",), [{"name": "aluminum_7075", "E": 1e9, "nu": 0.3, "density": 1.0}])),
      "materials[0].name"),
