@@ -402,9 +402,10 @@ def stored_static_gradient(tangent: str, args):
 
         from ..dynamics.adjoint import differentiated   # the dynamics import this package
         floats = differentiated(args[1], [True] * len(jax.tree_util.tree_leaves(args[1])))[0]
+        # LLVM's O1: less compile time, same run time (simsoft_jax.math.xla)
         PROGRAMS[key] = compile_cache.compile_stored(
-            jit(static_gradient), args, jax.tree_util.tree_structure(floats),
-            "static gradient", variant=tangent)
+            jit(static_gradient, optimization_level=1), args,
+            jax.tree_util.tree_structure(floats), "static gradient", variant=tangent)
     return PROGRAMS[key]
 
 
