@@ -82,7 +82,7 @@ def block_steps(dt: float, t_end: float, save_every: int) -> tuple[np.ndarray, i
     return np.array([dt] * full + closing, np.float64), save_every
 
 
-@jit(loop_invariant_motion=False, optimization_level=1)   # xla: less compile, run time +2-4 %
+@jit(loop_invariant_motion=False, optimization_level=1)   # xla: less compile, ~same run time
 def _chunk(model: Model, settings: DynamicSettings, carry, h, fresh):
     """Save blocks of step sizes ``h`` (B,) from ``carry``, or from the start state of
     ``model`` when ``fresh``; trailing blocks of size 0 (the padding of the last chunk)
