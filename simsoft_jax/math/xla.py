@@ -21,7 +21,8 @@ installed jaxlib does not know them, plain ``jax.jit`` is used.
 default: for the gradient programs (the implicit derivative of a static solve, the
 rollout's backward pass) 10-15 % less compile CPU time (2.5 -> 2.2 s, 4.4 -> 4.0 s) at
 the same run time, for the rollout 4.0 -> 3.3 s at a run time about 2.5 % longer; the
-static solver would run 4-5 % slower and keeps the default.
+static solver would run 4-5 % slower and keeps the default. A level set in ``XLA_FLAGS``
+wins over it.
 
 ``jit(..., loop_invariant_motion=False)`` also skips XLA's loop-invariant code motion,
 for a program that computes its invariants before its loops itself: run 14 times over the
@@ -33,6 +34,7 @@ slower without it (benchmarks/README.md, "The compile, session 12").
 from __future__ import annotations
 
 import functools
+import os
 
 import jax
 import numpy as np
@@ -79,7 +81,7 @@ class _Jitted:
         options = compiler_options()
         if options and not self._motion:
             options = {**options, **_NO_LOOP_INVARIANT_MOTION}
-        if options and self._level is not None:
+        if options and self._level is not None and not level_in_environment():
             options = {**options, "xla_backend_optimization_level": self._level}
         return options
 
@@ -105,6 +107,12 @@ def traced(*trees) -> bool:
     """Whether any leaf of ``trees`` is a tracer: the call is inside a user's ``jit``,
     ``vmap`` or ``grad`` (its program is compiled with the enclosing computation)."""
     return any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(trees))
+
+
+def level_in_environment() -> bool:
+    """Whether ``XLA_FLAGS`` sets the backend optimization level (for instance the test
+    suite's fast-compile flags): then ``optimization_level`` leaves it as set there."""
+    return "--xla_backend_optimization_level" in os.environ.get("XLA_FLAGS", "")
 
 
 def jit(fun=None, loop_invariant_motion: bool = True, optimization_level: int | None = None,
