@@ -85,9 +85,9 @@ FIGURES = {
 # its own persistent JAX compilation cache (a cache folder is never written by two
 # processes at once). Lane 0 holds the scenes that share compiled programs (spring steel
 # then silicone) and the examples whose programs the notebooks compile again (pure
-# bending, helical, the catheters, the Pazy wing, the control examples that notebook 09
-# runs whole): its cache is reused by tests/test_notebooks.py (same folder name). The
-# lanes take about the same CPU time (about 180 s each with the test compile flags).
+# bending, helical, the catheters, the control examples that notebook 09 runs whole):
+# its cache is reused by tests/test_notebooks.py (same folder name). The lanes take
+# about the same CPU time (about 180 s each with the test compile flags).
 LANES = (("helical_motion", "spring_steel_rod", "silicone_body", "pure_bending",
           "princeton_replay", "catheter_bend", "contact_catheter", "real_pazy_wing",
           "learn_policy", "mpc_tendon_tracking"),
