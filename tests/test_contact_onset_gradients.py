@@ -4,8 +4,11 @@ A rod lying exactly on an obstacle (gap 0: zero normal force at the first step) 
 Coulomb friction is thrown up and forward; the reverse-mode gradient of its final tip
 position through the differentiable rollout (implicit derivative of every step), in the
 initial velocities and in the friction coefficient, is checked against central finite
-differences of the rollout itself, for a plane, a sphere and a tube. Dimensions are
-binary fractions, so the start gaps are exactly 0. The contact is soft enough to be
+differences of the rollout itself, for a plane, a sphere and a tube. The three cases
+share one scene structure (one compiled program): each holds all three obstacles, the
+two not under test far from the rod (a huge tube around it), where their contact force
+and its derivatives are exactly zero. Dimensions are binary fractions, so the start
+gaps are exactly 0. The contact is soft enough to be
 resolved by the step (contact time pi sqrt(rhoA/k) = 0.07 s, fourteen steps).
 Also each contact formula's derivatives at the singular points (zero gap, zero normal
 force, zero slip, a point on an obstacle's axis or centre).
@@ -26,10 +29,22 @@ OBSTACLES = {
     "tube": {"kind": "tube", "axis_point": [0.0, 0.0, 0.0625 - R_C], "axis": [1.0, 0.0, 0.0],
              "radius": 0.0625},
 }
+# the obstacles not under test: 10 m from the rod (the tube: around it, 10 m away)
+FAR = {
+    "plane": {"kind": "plane", "point": [0.0, 0.0, -10.0], "normal": [0.0, 0.0, 1.0]},
+    "sphere": {"kind": "sphere", "center": [0.25, 0.0, -10.125], "radius": 0.125},
+    "tube": {"kind": "tube", "axis_point": [0.0, 0.0, 0.0], "axis": [1.0, 0.0, 0.0],
+             "radius": 10.0},
+}
 DT, STEPS = 0.005, 10
+SETTINGS = sj.DynamicSettings(dt=DT, steps=STEPS)
+WEIGHTS = jnp.asarray([0.3, -0.2, 1.0])
 
 
-def thrown(kind):
+def thrown(kind, far=False):
+    """The rod at gap 0 on the obstacle ``kind`` thrown up and forward; ``far``: with the
+    other obstacles too, far away (in the order of :data:`OBSTACLES`' sorted names)."""
+    kinds = sorted(OBSTACLES) if far else [kind]
     return {"solver": {"kind": "dynamic", "t_end": DT * STEPS, "dt": DT},
             "gravity": {"vector": [0.0, 0.0, -9.81]},
             "initial_velocity": [{"rod": "rod", "linear": [0.25, 0.0, 0.25]}],
@@ -38,27 +53,29 @@ def thrown(kind):
                       "stiffness": {"EA": 1e4, "GAy": 1e4, "GAz": 1e4, "GJ": 1.0,
                                     "EIy": 1.0, "EIz": 1.0},
                       "inertia": {"rhoA": 0.5, "rhoJ": 1e-4, "rhoIy": 5e-5, "rhoIz": 5e-5}}],
-            "obstacles": [{"name": "o", "friction": 0.3, **OBSTACLES[kind]}],
+            "obstacles": [{"name": k, "friction": 0.3,
+                           **(OBSTACLES[k] if k == kind else FAR[k])} for k in kinds],
             "contact": {"radius": R_C, "stiffness": 1e3}}
+
+
+def _tip(model):
+    return jnp.dot(sj.simulate(model, SETTINGS, differentiable=True).p[-1, -1], WEIGHTS)
+
+
+# one program for the gradient and the finite differences, for all three obstacles
+TIP_AND_GRADIENT = jax.jit(jax.value_and_grad(_tip))
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", sorted(OBSTACLES))
 def test_thrown_from_gap_zero_with_friction_gradients_match_finite_differences(kind):
-    model = sj.build_model(sj.Scene.from_dict(thrown(kind)))
-    settings = sj.DynamicSettings(dt=DT, steps=STEPS)
-    weights = jnp.asarray([0.3, -0.2, 1.0])
-    start = sj.simulate(model, settings, differentiable=True)
+    model = sj.build_model(sj.Scene.from_dict(thrown(kind, far=True)))
+    start = sj.simulate(model, SETTINGS, differentiable=True)
     assert bool(start.converged), start.message()
-
-    def tip(m):
-        return jnp.dot(sj.simulate(m, settings, differentiable=True).p[-1, -1], weights)
-
-    both = jax.jit(jax.value_and_grad(tip))   # one program for the gradient and the FD
-    _, grad = both(model)
+    _, grad = TIP_AND_GRADIENT(model)
     assert all(bool(jnp.all(jnp.isfinite(x))) for x in jax.tree_util.tree_leaves(grad)
                if jnp.issubdtype(x.dtype, jnp.floating))
-    f = lambda **change: float(both(model.replace(**change))[0])  # noqa: E731
+    f = lambda **change: float(TIP_AND_GRADIENT(model.replace(**change))[0])  # noqa: E731
     direction = jnp.asarray(np.random.default_rng(0).standard_normal(model.v0.shape))
     e = 1e-6
     fd = (f(v0=model.v0 + e * direction) - f(v0=model.v0 - e * direction)) / (2 * e)

@@ -101,6 +101,7 @@ def slid():
     return result
 
 
+@pytest.mark.slow   # in the lane of the gradient below, which reuses this rollout's program
 def test_displaced_tendon_on_a_sliding_drive_holds_its_length_and_slides(slid):
     """The length change follows its law, the base slides (the tendon shortens the rod,
     no force holds it along x) and stays on its line (y = z = 0)."""
@@ -111,6 +112,7 @@ def test_displaced_tendon_on_a_sliding_drive_holds_its_length_and_slides(slid):
     assert np.abs(base[:, 1:]).max() < 1e-12
 
 
+@pytest.mark.slow   # with the test above
 def test_tension_control_with_the_solved_tensions_slides_the_rod_the_same_way(slid):
     t = np.asarray(slid.time)
     tension = slid.tendon_tension("t")
@@ -172,6 +174,7 @@ def middle_height(result):
     return z - result.positions("bottom")[:, N_TOP // 2, 2]
 
 
+@pytest.mark.slow   # in the lane of the gradient below, which reuses this rollout's program
 def test_rod_carried_across_a_crossing_rod_on_a_sliding_drive_equals_the_plain_drive():
     """Rod-rod contact and a sliding drive: slid along y, moved along x across the lower
     rod, the rod feels no force along y (symmetry, no friction): it moves as on the same

@@ -84,14 +84,17 @@ FIGURES = {
 # Two lanes run side by side (2 cores); each runs its examples one after the other with
 # its own persistent JAX compilation cache (a cache folder is never written by two
 # processes at once). Lane 0 holds the scenes that share compiled programs (spring steel
-# then silicone) and its cache is reused by tests/test_notebooks.py (same folder name).
+# then silicone) and the examples whose programs the notebooks compile again (pure
+# bending, helical, the catheters, the control examples that notebook 09 runs whole):
+# its cache is reused by tests/test_notebooks.py (same folder name). The lanes take
+# about the same CPU time (about 180 s each with the test compile flags).
 LANES = (("helical_motion", "spring_steel_rod", "silicone_body", "pure_bending",
-          "princeton_replay", "calibrate_princeton", "catheter_bend", "parallel_robot",
-          "magnetic_catheter", "learn_policy", "six_leg_parallel_robot"),
+          "princeton_replay", "catheter_bend", "contact_catheter", "real_pazy_wing",
+          "learn_policy", "mpc_tendon_tracking"),
          ("free_planar_rotation", "magellan_catheter", "bending_actuator",
-          "dynamic_identification", "princeton_sweep", "tendon_actuation",
-          "contact_catheter", "gripper", "real_tdcr_tendon", "real_pazy_wing",
-          "mpc_tendon_tracking", "three_finger_gripper"))
+          "dynamic_identification", "princeton_sweep", "calibrate_princeton",
+          "tendon_actuation", "gripper", "parallel_robot", "real_tdcr_tendon",
+          "magnetic_catheter", "six_leg_parallel_robot", "three_finger_gripper"))
 CACHE_NAMES = ("jax_compilation_cache", "jax_compilation_cache_lane1")
 
 

@@ -46,7 +46,8 @@ def test_notebook_runs_in_fast_mode(path, tmp_path, tmp_path_factory):
     """The code cells run in order in one namespace without error (the notebooks check
     their own numbers with asserts against references they compute)."""
     # the folder of lane 0 of tests/test_examples.py (that module's runs are over by now):
-    # the notebooks reuse its compiled pure-bending and helical programs
+    # the notebooks reuse its compiled programs (pure bending, helical, the catheters and
+    # the two control examples that notebook 09 runs whole)
     cache = tmp_path_factory.getbasetemp() / "jax_compilation_cache"
     cache.mkdir(exist_ok=True)
     env = dict(os.environ, SIMSOFT_FAST="1", MPLBACKEND="Agg", SIMSOFT_OUT=str(tmp_path),
