@@ -1,7 +1,8 @@
 """Gradients at contact onset are finite and right.
 
 A rod lying exactly on an obstacle (gap 0: zero normal force at the first step) with
-Coulomb friction is thrown up and forward; the reverse-mode gradient of its final tip
+Coulomb friction is thrown forward and down onto it, so that it presses on the obstacle
+and slides with friction; the reverse-mode gradient of its final tip
 position through the differentiable rollout (implicit derivative of every step), in the
 initial velocities and in the friction coefficient, is checked against central finite
 differences of the rollout itself, for a plane, a sphere and a tube. The three cases
@@ -37,17 +38,19 @@ FAR = {
              "radius": 10.0},
 }
 DT, STEPS = 0.005, 10
-SETTINGS = sj.DynamicSettings(dt=DT, steps=STEPS)
+# a tight Newton tolerance: the central differences below divide the rollout's error by 2e-6
+SETTINGS = sj.DynamicSettings(dt=DT, steps=STEPS, tolerance=1e-12)
 WEIGHTS = jnp.asarray([0.3, -0.2, 1.0])
 
 
-def thrown(kind, far=False):
-    """The rod at gap 0 on the obstacle ``kind`` thrown up and forward; ``far``: with the
-    other obstacles too, far away (in the order of :data:`OBSTACLES`' sorted names)."""
+def thrown(kind, far=False, velocity=(0.25, 0.0, -0.05)):
+    """The rod at gap 0 on the obstacle ``kind`` thrown at ``velocity`` (m/s; by default
+    forward and down onto it); ``far``: with the other obstacles too, far away (in the
+    order of :data:`OBSTACLES`' sorted names)."""
     kinds = sorted(OBSTACLES) if far else [kind]
     return {"solver": {"kind": "dynamic", "t_end": DT * STEPS, "dt": DT},
             "gravity": {"vector": [0.0, 0.0, -9.81]},
-            "initial_velocity": [{"rod": "rod", "linear": [0.25, 0.0, 0.25]}],
+            "initial_velocity": [{"rod": "rod", "linear": list(velocity)}],
             "rods": [{"name": "rod", "elements": 4,
                       "geometry": {"kind": "straight", "length": 0.5},
                       "stiffness": {"EA": 1e4, "GAy": 1e4, "GAz": 1e4, "GJ": 1.0,
@@ -82,6 +85,7 @@ def test_thrown_from_gap_zero_with_friction_gradients_match_finite_differences(k
     np.testing.assert_allclose(float(jnp.vdot(grad.v0, direction)), fd, rtol=1e-4, atol=1e-9)
     mu = model.obstacle_friction
     fd_mu = (f(obstacle_friction=mu + e) - f(obstacle_friction=mu - e)) / (2 * e)
+    assert abs(fd_mu) > 1e-4          # the friction acts on the sliding rod
     np.testing.assert_allclose(float(jnp.sum(grad.obstacle_friction)), fd_mu, rtol=1e-4,
                                atol=1e-9)
 
@@ -95,7 +99,7 @@ def test_thrown_onto_a_stiff_plane_the_differentiable_rollout_sub_steps_like_the
     stiff impact curves the final tip sharply in ``v0``: central differences approach the
     derivative only below a step of 1e-6 (1e-5: -5.58, 1e-6: -6.0268, 1e-7: -6.03090
     against -6.03096 here), so the check takes 1e-7 with a tight Newton tolerance."""
-    scene = thrown("plane")
+    scene = thrown("plane", velocity=(0.25, 0.0, 0.25))     # up, then back onto the plane
     scene["rods"][0]["elements"] = 10
     del scene["contact"]["stiffness"]
     scene["solver"].update(dt=0.01, t_end=0.1)
