@@ -107,3 +107,24 @@ def test_rod_contact_where_rods_can_touch_and_not_with_a_sliding_drive():
     assert scene["contact"] == {"self": True} and "obstacles" not in scene
     twist = registry.load_experiment("twist")
     assert "contact" not in scene_dict(twist.build(**twist.values()), 8, dt=1e-3)
+
+
+def test_a_heap_gets_the_penalty_its_weight_sinks_by_a_hundredth_of_the_radius():
+    """The pile (a rope lowered onto a floor, touching itself): the penalty under which the
+    rope lying on the floor sinks by 1 % of its radius under its weight, rhoA g / (0.01 r)
+    (closed form from the benchmark's rope: 5 mm cord, density 1000, g = 9.81), and 32
+    element pairs; the capstan (a floor-less rope on a cylinder) and the crossing (rods
+    without an obstacle) keep the default penalty and pairs."""
+    pile = registry.load_experiment("pile")
+    scenario = pile.build(**pile.values())
+    rope = scenario.rods[0]
+    contact = scene_dict(scenario, 100, dt=1e-2)["contact"]
+    weight = rope.material.density * np.pi * rope.radius ** 2 * 9.81
+    assert contact["stiffness"] == pytest.approx(weight / (0.01 * rope.radius), rel=1e-12)
+    assert contact["max_pairs"] == 32
+    model = build_model(Scene.from_dict(scene_dict(scenario, 100, dt=1e-2)))
+    assert np.max(model.contact_stiffness) == pytest.approx(contact["stiffness"], rel=1e-12)
+    for name in ("capstan", "crossing"):
+        other = registry.load_experiment(name)
+        c = scene_dict(other.build(**other.values()), 20, dt=1e-2)["contact"]
+        assert "stiffness" not in c and "max_pairs" not in c

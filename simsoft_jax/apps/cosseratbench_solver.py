@@ -53,6 +53,17 @@ and solved through the public API:
   its figures in docs/cosseratbench.md were measured (the scene format accepts both
   together; that run is not measured yet), and the benchmark's overlap observation
   shows where rods pass through each other.
+* **Heaps** (rod contact with an obstacle under gravity: the pile): the penalty
+  stiffness is lowered to the one under which a rod lying on the obstacle sinks by
+  ``HEAP_SINK`` = 1 % of its radius under its own weight, ``k = rhoA |g| / (0.01 r)``
+  (7.7e3 N/m^2 on the pile, against the default ``1000 EI / h^4`` = 6.1e5 for its soft
+  rope), and the narrow phase holds ``HEAP_PAIRS`` = 32 element pairs per rod (the
+  default 8 overflow as the rope heaps, which fails the step). The stick-slip friction's
+  tangential stiffness is the penalty's, so its sticking range ``mu f_n / k`` grows
+  with it: with the default the range was 0.1 micrometre and Newton cycled between the
+  stations' sliding directions (steps at the iteration limit); the contact time
+  ``pi sqrt(rhoA / k)`` (5 ms) is longer. Capstan and crossing (no heap) keep the default
+  penalty they were measured with (docs/cosseratbench.md).
 * **Contact scenarios** (obstacles or rod contact) run as damped dynamics even when a
   static solve could stand for them: the stick-slip friction is a law of the dynamics,
   and a free rope lying on an obstacle has no isolated static equilibrium. Quasi-static
@@ -86,6 +97,7 @@ from ..solvers.dynamics.contact_time import RESOLUTION, contact_time
 from ..math.lie import log_so3
 from ..model.model import build_model
 from ..scene.scene import Scene
+from ..scene.scene_contact import STIFFNESS_FACTOR
 from ..solvers.statics import solve_static
 
 try:  # the extra: without it, importing this module fails with the missing package named
@@ -100,6 +112,8 @@ RHO_INF_CONTACT = 0.0  # quasi-static scenarios with contact (module docstring)
 CONTACT_DAMPING_RATIO = 1.0  # normal damping of the contact with obstacles (docstring)
 MAX_HALVINGS = DynamicSettings.__dataclass_fields__["max_halvings"].default
 STEPS_PER_PERIOD = {True: 40, False: 200}  # keyed by Scenario.quasi_static
+HEAP_SINK = 0.01   # a heap's penalty: a rod's weight sinks it by this fraction of its radius
+HEAP_PAIRS = 32    # a heap's rod-rod element pairs ([contact] max_pairs), per rod
 _initial_state = jax.jit(initial_state)
 
 
@@ -143,6 +157,27 @@ def _rod_contact(scenario):
 
 def _has_contact(scenario):
     return bool(scenario.obstacles) or _rod_contact(scenario)
+
+
+def _heaps(scenario):
+    """Whether rods may heap on an obstacle: rod contact, an obstacle and gravity
+    (module docstring, "Heaps")."""
+    return _rod_contact(scenario) and bool(scenario.obstacles) and any(scenario.gravity)
+
+
+def _heap_contact(scenario, n_elements):
+    """The ``[contact]`` settings of a heap (module docstring, "Heaps"): the penalty
+    stiffness (N/m^2) under which a rod lying on an obstacle sinks by ``HEAP_SINK`` of its
+    radius under its own weight, ``rhoA |g| / (HEAP_SINK r)``, where that is below the
+    default ``1000 EI / h^4``; and ``HEAP_PAIRS`` element pairs per rod."""
+    g = float(np.linalg.norm(scenario.gravity))
+    stiffness = []
+    for rod in scenario.rods:
+        m, r = rod.material, rod.radius
+        area, inertia = math.pi * r ** 2, 0.25 * math.pi * r ** 4
+        default = STIFFNESS_FACTOR * m.youngs_modulus * inertia / (rod.length / n_elements) ** 4
+        stiffness.append(min(default, m.density * area * g / (HEAP_SINK * r)))
+    return {"stiffness": min(stiffness), "max_pairs": HEAP_PAIRS * len(scenario.rods)}
 
 
 def _obstacle(index, obstacle, rods, n_elements):
@@ -215,6 +250,8 @@ def scene_dict(scenario, n_elements, damping=0.0, dt=None):
                               for i, o in enumerate(scenario.obstacles)]
     if _has_contact(scenario):
         scene["contact"] = {"self": _rod_contact(scenario)}
+        if _heaps(scenario):
+            scene["contact"] |= _heap_contact(scenario, n_elements)
         if scenario.obstacles:
             scene["contact"]["damping_ratio"] = CONTACT_DAMPING_RATIO
         if any(o["friction"] > 0 for o in scene.get("obstacles", ())):

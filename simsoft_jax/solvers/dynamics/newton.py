@@ -181,8 +181,8 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
                                         lambda t: positions(c.w + t * dw), 1.0,
                                         obstacles_too=False)
         dw, dmu = fraction * dw, fraction * dmu
-        size = step_norm(model, dw)
-        if damped:   # a fresh correction no smaller than the last one is halved
+        size = full = step_norm(model, dw)
+        if damped:   # a fresh correction no smaller than the last full one is halved
             halve = c.fresh & (size >= c.previous)
             dw, dmu = jnp.where(halve, 0.5 * dw, dw), jnp.where(halve, 0.5 * dmu, dmu)
             size = jnp.where(halve, 0.5 * size, size)
@@ -206,7 +206,7 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
                                     (c.iterations + 1 >= settings.max_iterations,
                                      Status.MAX_ITERATIONS)))
         return _NewtonCarry(w_new, c.iterations + 1, status, factors, rebuild,
-                            jnp.where(reject, c.previous, size), c.rebuilt | rebuild,
+                            jnp.where(reject, c.previous, full), c.rebuilt | rebuild,
                             weighted_norm(model, r), mu_new,
                             jnp.where(reject | ~jnp.isfinite(c.previous), c.theta, theta),
                             tracked)
