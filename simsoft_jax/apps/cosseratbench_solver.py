@@ -97,7 +97,7 @@ from ..solvers.dynamics.contact_time import RESOLUTION, contact_time
 from ..math.lie import log_so3
 from ..model.model import build_model
 from ..scene.scene import Scene
-from ..scene.scene_contact import STIFFNESS_FACTOR
+from ..scene.scene_contact import default_stiffness
 from ..solvers.statics import solve_static
 
 try:  # the extra: without it, importing this module fails with the missing package named
@@ -175,7 +175,7 @@ def _heap_contact(scenario, n_elements):
     for rod in scenario.rods:
         m, r = rod.material, rod.radius
         area, inertia = math.pi * r ** 2, 0.25 * math.pi * r ** 4
-        default = STIFFNESS_FACTOR * m.youngs_modulus * inertia / (rod.length / n_elements) ** 4
+        default = default_stiffness(m.youngs_modulus * inertia, rod.length / n_elements)
         stiffness.append(min(default, m.density * area * g / (HEAP_SINK * r)))
     return {"stiffness": min(stiffness), "max_pairs": HEAP_PAIRS * len(scenario.rods)}
 

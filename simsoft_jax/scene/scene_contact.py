@@ -201,6 +201,12 @@ def check_contact_radius(rods, spec, obstacles: bool) -> None:
                  f"take it from (or set rods[{i}].contact_radius)")
 
 
+def default_stiffness(EI, length):
+    """The default penalty stiffness ``STIFFNESS_FACTOR EI / h^4`` (N/m^2) of elements of
+    bending stiffness ``EI`` (N m^2) and length ``h = length`` (m) (arrays or floats)."""
+    return STIFFNESS_FACTOR * EI / np.asarray(length) ** 4
+
+
 def contact_tables(scene, stiffness, length):
     """Model tables of the contact: per element radius (E,) m, penalty stiffness (E,)
     N/m^2 and slip-displacement scale of static friction (E,) m, obstacle rows (K,ROW),
@@ -220,7 +226,7 @@ def contact_tables(scene, stiffness, length):
     K = np.asarray(stiffness)
     EI = np.maximum(K[:, 4, 4], K[:, 5, 5]) if K.ndim == 3 else np.maximum(K[:, 4], K[:, 5])
     k = (np.full(len(length), spec.stiffness) if spec.stiffness is not None
-         else STIFFNESS_FACTOR * EI / np.asarray(length) ** 4)
+         else default_stiffness(EI, length))
     rows = np.reshape([o.params for o in obstacles], (-1, ROW))
     shift = np.reshape([np.zeros(3) if o.displacement is None else o.displacement
                         for o in obstacles], (-1, 3))
