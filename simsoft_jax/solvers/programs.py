@@ -42,10 +42,13 @@ def solve_static_checked(model: Model, settings, check):
     equilibrium with the count packed into one vector (:func:`~simsoft_jax.solvers.packing.pack`
     of ``(eq without R and p, count)``, :func:`static_layout`): three copies to the host
     instead of a dozen. (Packing the frames as well made the whole solve ~10 % slower:
-    the loops then keep them in XLA's temporary buffers.)"""
+    the loops then keep them in XLA's temporary buffers.) The equilibrium keeps the
+    tangent blocks at the solution (``Equilibrium.tangent``): the gradient of the solve
+    factorizes them instead of assembling them again
+    (:func:`~simsoft_jax.solvers.statics.stored_static_gradient`)."""
     eq = equilibrium(model, settings, keep_tangent=True)
     tangent, positive = eq.tangent, eq.tangent_positive
-    eq = eq._replace(tangent=None, tangent_positive=None)
+    eq = eq._replace(tangent_positive=None)
     count = jax.lax.cond(check & eq.converged,
                          lambda: negative_eigenvalues(model, eq, tangent, positive).astype(int),
                          lambda: jnp.array(-1))
@@ -68,6 +71,7 @@ def static_layout(model) -> tuple:
         load_level=like(()), load_steps=count, step_failures=count, status=count,
         cause=count,
         multipliers=like((multipliers,)) if multipliers else None,
+        tangent=(like((n, 6, 6)), like((n - 1, 6, 6)), like((n - 1, 6, 6))),
         tendon_tension=(like((len(structure.tendon_names),))
                         if structure.tendon_names else None),
         previous=frames if model.obstacle_friction is not None else None)
@@ -80,7 +84,8 @@ def compiled_static_solver(model: Model, settings):
     compiled in this process). Call it as ``solver(model, as_traced(settings), check)``
     (``check`` a bool): it returns the :class:`~simsoft_jax.solvers.statics.Equilibrium` and the
     count of negative eigenvalues (-1: not counted), as NumPy arrays (one copy to the
-    host)."""
+    host); ``solver(..., tangent=True)``: the equilibrium with its tangent blocks at the
+    solution (``Equilibrium.tangent``, for its gradient), else without (None)."""
     key = ("static",) + compile_key(model, settings)
     if key in PROGRAMS:
         return PROGRAMS[key], 0.0
@@ -90,10 +95,10 @@ def compiled_static_solver(model: Model, settings):
                              jax.tree_util.tree_structure((0, 0, 0)), "static")
     layout = Layout(static_layout(model))
 
-    def compiled(*args):
+    def compiled(*args, tangent=False):
         R, p, packed = jax.device_get(program(*args))
         eq, count = layout.unpack(packed)
-        return eq._replace(R=R, p=p), count
+        return eq._replace(R=R, p=p, tangent=eq.tangent if tangent else None), count
     # a program's first execution in a process costs more than later ones (one-off
     # set-up of its kernels): paid here, by a solve to an infinite tolerance (one Newton
     # pass per load level) with its stability check (dynamics.driver._warm_up)

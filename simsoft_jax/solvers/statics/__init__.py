@@ -236,7 +236,7 @@ def _continuation(model: Model, settings: StaticSettings) -> Equilibrium:
 @dataclasses.dataclass(frozen=True)
 class EquilibriumProblem:
     """The static equilibrium as an implicit problem for :func:`simsoft_jax.solvers.newton.implicit`
-    (spec section 5): ``params = (model, converged, previous)``, ``solution = (R, p, y)``
+    (spec section 5): ``params = (model, converged, previous, kept)``, ``solution = (R, p, y)``
     (frames and multipliers: joint multipliers, displacement-controlled tendons' tensions,
     :func:`.newton.at_level`), increments ``(dx (N,6), dy (M,))`` on the right of the
     frames. Held dofs follow the start frames ``model.R0, model.p0`` (a clamp holds its
@@ -247,7 +247,10 @@ class EquilibriumProblem:
     friction (F1) is then ``mu f_n`` whatever the slip's size; an approximation for
     sticking stations). With settling rods (:func:`.newton.settling_force`) the tangent
     holds the settling springs: a motion nothing else holds (neutral) keeps its converged
-    value in the derivative. ``tangent``: the tangent path of the solve."""
+    value in the derivative. ``tangent``: the tangent path of the solve. ``kept``: the
+    solve's own tangent blocks at the solution (``Equilibrium.tangent``, settling springs
+    included), used as they are instead of assembled again (a smaller gradient program),
+    or None; they are not differentiated, so a derivative of the derivative needs None."""
     tangent: str
 
     def prescribed(self, params, solution):
@@ -264,7 +267,7 @@ class EquilibriumProblem:
         return held * moved, jnp.zeros_like(y)
 
     def residual(self, params, solution, delta):
-        model, _, previous = params
+        model, _, previous, _ = params
         R, p, y = solution
         Rx, px = update_frames(R, p, delta[0])
         level = at_level(model, y + delta[1], 1.0)
@@ -272,12 +275,15 @@ class EquilibriumProblem:
                                          residual(level, Rx, px, 1.0, previous))
 
     def linear_solve(self, params, solution, rhs):
-        model, _, previous = params
+        model, _, previous, kept = params
         R, p, y = solution
         level = at_level(model, y, 1.0)
-        r, tangent = residual_and_tangent(level, R, p, 1.0, self.tangent, previous)
-        if model.structure.settling:   # the settling springs (zero force at the solution)
-            k = settling_force(model, R, p, (R, p), load_scale(model))[1]
+        if kept is not None:   # the residual is not read: only the matrix is used here
+            r, tangent = jnp.zeros(p.shape[:1] + (6,), p.dtype), kept
+        else:
+            r, tangent = residual_and_tangent(level, R, p, 1.0, self.tangent, previous)
+        if model.structure.settling and kept is None:   # the settling springs (zero force
+            k = settling_force(model, R, p, (R, p), load_scale(model))[1]   # at the solution)
             tangent = (tangent[0] + jax.vmap(jnp.diag)(k),) + tuple(tangent[1:])
         system = coupling.couple(level, R, p, y, r, tangent)
         x, z = implicit_solve_coupled(system.blocks, system.B, system.C, system.D, *rhs,
@@ -318,15 +324,19 @@ def equilibrium(model: Model, settings: StaticSettings, continuation=None,
     return with_derivative(eq, model, settings.tangent)
 
 
-def with_derivative(eq: Equilibrium, model: Model, tangent: str) -> Equilibrium:
+def with_derivative(eq: Equilibrium, model: Model, tangent: str,
+                    kept: bool = False) -> Equilibrium:
     """``eq``, solved for ``model`` (under its full loads), carrying the implicit
     derivative in ``model`` (:class:`EquilibriumProblem`, ``tangent`` its tangent path),
     with the tendons' tensions: as given, the displacement-controlled ones from the
     multipliers (None without tendons, as a zero-size output would trouble batched
-    maps)."""
+    maps). ``kept``: the derivative factorizes the solve's tangent blocks
+    ``eq.tangent`` (first derivatives only; not with settling rods, whose springs the
+    solve scaled to its last load level) instead of assembling them again."""
     y = jnp.zeros(0) if eq.multipliers is None else eq.multipliers   # None: no multipliers
-    R, p, y = implicit(EquilibriumProblem(tangent), (model, eq.converged, eq.previous),
-                       (eq.R, eq.p, y))
+    blocks = eq.tangent if kept and not model.structure.settling else None
+    R, p, y = implicit(EquilibriumProblem(tangent),
+                       (model, eq.converged, eq.previous, blocks), (eq.R, eq.p, y))
     tension = (coupling.with_multipliers(model, y).tendon_tension
                if model.structure.tendon_names else None)
     return eq._replace(R=R, p=p, multipliers=None if eq.multipliers is None else y,
@@ -393,8 +403,8 @@ def static_cotangent(eq: Equilibrium, model: Model, bar, tangent: str,
     if perturbed is None:
         perturbed = [True] * len(jax.tree_util.tree_leaves(model))
     floats, rebuild, _ = differentiated(model, perturbed)
-    _, pullback = jax.vjp(
-        lambda f: _solved(with_derivative(eq, full_loads(rebuild(f)), tangent)), floats)
+    _, pullback = jax.vjp(lambda f: _solved(with_derivative(
+        eq, full_loads(rebuild(f)), tangent, kept=eq.tangent is not None)), floats)
     return pullback(bar)[0]
 
 
@@ -424,15 +434,16 @@ def stored_static_gradient(tangent: str, perturbed: tuple, args):
     return PROGRAMS[key]
 
 
-def _compiled(model: Model, settings: StaticSettings) -> Equilibrium:
+def _compiled(model: Model, settings: StaticSettings, tangent: bool = False) -> Equilibrium:
     """The equilibrium of plain arrays by ``sj.run``'s compiled static program for this
     structure (:func:`simsoft_jax.solvers.programs.compiled_static_solver`, the stability count
-    switched off), so that both share one program."""
+    switched off), so that both share one program; with its tangent blocks at the
+    solution when ``tangent``."""
     from ..programs import compiled_static_solver   # it imports this package
     from ..dynamics.driver import with_arrays
     model = with_arrays(model)
     solver, _ = compiled_static_solver(model, settings)
-    return solver(model, as_traced(settings), np.bool_(False))[0]
+    return solver(model, as_traced(settings), np.bool_(False), tangent=tangent)[0]
 
 
 def forward_mode(model: Model) -> bool:
@@ -483,9 +494,9 @@ def solve_static(model: Model, settings: StaticSettings = StaticSettings(),
         elif forward_mode(model):
             eq = differentiable(_compiled(primal, settings), model, settings.tangent)
         else:   # reverse mode (jax.grad, jax.vjp): a backward program of its own
-            eq = _compiled(primal, settings)
+            eq = _compiled(primal, settings, tangent=True)
             R, p, y, tension = _reverse_only(settings.tangent, eq, model)
-            eq = eq._replace(R=R, p=p, multipliers=y, tendon_tension=tension)
+            eq = eq._replace(R=R, p=p, multipliers=y, tendon_tension=tension, tangent=None)
     if throw:
         raise_if_failed("static", eq.converged, eq.status, eq.cause, eq.load_level,
                         eq.residual_norm)
