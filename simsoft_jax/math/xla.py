@@ -20,9 +20,10 @@ installed jaxlib does not know them, plain ``jax.jit`` is used.
 ``jit(..., optimization_level=1)`` compiles with LLVM's O1 pipeline instead of its
 default: for the gradient programs (the implicit derivative of a static solve, the
 rollout's backward pass) 10-15 % less compile CPU time (2.5 -> 2.2 s, 4.4 -> 4.0 s) at
-the same run time, for the rollout 4.0 -> 3.3 s at a run time about 2.5 % longer; the
-static solver would run 4-5 % slower and keeps the default. A level set in ``XLA_FLAGS``
-wins over it.
+the same run time, for the rollout 4.0 -> 3.3 s at a run time about 2.5 % longer, for
+the static solver 2.8 -> 2.4 s (cantilever) and 3.3 -> 2.7 s (Princeton) at a run time
+3-6 % longer (the fastest of 60 alternated runs: 1.08 -> 1.14 ms, 2.08 -> 2.19 ms).
+A level set in ``XLA_FLAGS`` wins over it.
 
 ``jit(..., loop_invariant_motion=False)`` also skips XLA's loop-invariant code motion,
 for a program that computes its invariants before its loops itself: run 14 times over the
