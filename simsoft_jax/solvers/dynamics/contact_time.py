@@ -21,11 +21,19 @@ With the normal contact damping (``[contact] damping_ratio``, (D1) of
 :mod:`simsoft_jax.physics.terms.contact`) a long step is refused only when it throws a
 station back: a touching station that ends the step leaving the obstacle (``v_n > 0``)
 faster than it moved along the normal at the step's start, by more than the same
-``eps / (2 h)``. The implicit step over an impact it does not resolve puts the rod where
-the penalty balances the loads (the damped penalty leaves it no rebound to catch up with),
-so its energy does not grow and the step stands; a step that gains normal speed at a
-contact (the rebound of an unresolved, too stiff impact) is sub-stepped as before. A
-station that keeps moving into or along the obstacle is no rebound.
+``eps / (2 h)``, and whose normal energy per unit length grew over the step,
+
+    rhoA (v_n1^2 - v_n0^2) / 2 + psi(delta_1) - psi(delta_0) > 0                (T1)
+
+(``psi`` the penalty energy, ``rhoA`` the element's line density). The penalty is
+conservative and the damping dissipates, so the obstacle alone cannot raise that energy:
+a step that does (the rebound of an unresolved, too stiff impact, which sinks a station
+far deeper than its loads can press it and throws it back) is sub-stepped as before. A
+station released from a deeper penetration than it ends with (a rope pressed into the
+floor by its own weight or by a pushed column, springing back as it folds away) turns
+penalty energy into speed and the step stands: the implicit step over a damped release it
+does not resolve gives back no more than the penalty held. A station that keeps moving
+into or along the obstacle is no rebound.
 """
 from __future__ import annotations
 
@@ -69,6 +77,18 @@ def stations(model, state):
                          world[a + 1])
 
 
+def thrown(model, pen0, vn0, pen1, vn1, h, eps) -> jax.Array:
+    """Whether contact stations (E,S,K) were thrown back by the obstacle in a step of
+    ``h`` (s) (module docstring, (T1)): penetrations pen0, pen1 (m) and normal speeds
+    vn0, vn1 (m/s, positive leaving) at the step's start and end; ``eps`` (E,1,1) m the
+    penalty's smoothing width."""
+    rho_a = jax.vmap(line_density)(model.inertia)[:, None, None]
+    k = model.contact_stiffness[:, None, None]
+    gained = 0.5 * rho_a * (vn1**2 - vn0**2) + (contact.penalty(pen1, k, eps)
+                                                 - contact.penalty(pen0, k, eps))
+    return ((vn1 - jnp.abs(vn0)) * h > 0.5 * eps) & (gained > 0.0)
+
+
 def unresolved(model, before, after, h) -> jax.Array:
     """Whether the step of size ``h`` (s) from the state ``before`` to ``after``
     (:class:`~.scheme.State`) is an impact too fast for the step (with contact damping:
@@ -83,7 +103,7 @@ def unresolved(model, before, after, h) -> jax.Array:
         eps = contact.SMOOTHING * model.contact_radius[:, None, None]
         touching = jnp.maximum(pen0, pen1) > 0.0
         if model.contact_damping is not None:   # only a rebound is refused
-            return jnp.any(touching & ((vn1 - jnp.abs(vn0)) * h > 0.5 * eps))
+            return jnp.any(touching & thrown(model, pen0, vn0, pen1, vn1, h, eps))
         moving = jnp.maximum(jnp.abs(vn0), jnp.abs(vn1)) * h > 0.5 * eps
         return jnp.any(touching & moving)
 
