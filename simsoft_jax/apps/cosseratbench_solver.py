@@ -82,6 +82,10 @@ and solved through the public API:
   following the contact time. The sub-steps may still be halved until they resolve
   the contact time ``pi sqrt(rhoA / k)`` (``max_halvings``:
   ``ceil(log2(10 dt_max / t_c))``, at least 6; 10 on the capstan).
+* **One OpenBLAS thread** while a scenario runs (:mod:`simsoft_jax.math.blas_threads`,
+  restored after it): the rod contact border of the pile (396 rows) is factorized by
+  LAPACK inside the compiled step, where OpenBLAS's own threads cost 5-50 times the CPU
+  of one thread.
 """
 from __future__ import annotations
 
@@ -94,6 +98,7 @@ import numpy as np
 from .. import __version__
 from ..solvers.dynamics import DynamicSettings, initial_state, simulate
 from ..solvers.dynamics.contact_time import RESOLUTION, contact_time
+from ..math.blas_threads import lapack_threads
 from ..math.lie import log_so3
 from ..model.model import build_model
 from ..scene.scene import Scene
@@ -363,6 +368,12 @@ class SimsoftJaxSolver:
         return out
 
     def run(self, scenario, *, n_elements: int, n_frames: int):
+        # one OpenBLAS thread for the dense factorizations inside the compiled programs
+        # (the rod-rod contact border; simsoft_jax.math.blas_threads)
+        with lapack_threads(1):
+            return self._run(scenario, n_elements=n_elements, n_frames=n_frames)
+
+    def _run(self, scenario, *, n_elements: int, n_frames: int):
         times = np.linspace(0.0, scenario.duration, n_frames)
         model = self._static_model(scenario, n_elements)
         if model is not None:
