@@ -67,10 +67,18 @@ def route_positions(result, welded):
     return np.concatenate([result.positions("a"), result.positions("b")[:, 1:]], axis=1)
 
 
+@jax.jit
+def _length_changes(model, R, p):
+    """The tendons' length changes (T, M) along a rollout's frames R (T,N,3,3), p (T,N,3):
+    one compiled program per structure (eagerly, each of the vmapped operations compiles
+    on its own: a hundred small programs)."""
+    return jax.vmap(lambda R, p: tendon_lengths.length_changes(model, R, p))(R, p)
+
+
 def length_changes(result):
-    model = result.model
-    return np.asarray(jax.vmap(lambda R, p: tendon_lengths.length_changes(model, R, p))(
-        jnp.asarray(result.raw.R), jnp.asarray(result.raw.p)))[:, 0]
+    """The first tendon's length change (T,), m, along ``result``'s rollout."""
+    return np.asarray(_length_changes(result.model, jnp.asarray(result.raw.R),
+                                      jnp.asarray(result.raw.p)))[:, 0]
 
 
 def law(t):
