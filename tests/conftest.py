@@ -30,6 +30,7 @@ pytest puts this folder on ``sys.path`` (its default ``prepend`` import mode, no
 ``__init__.py`` here), so test modules import the helpers with ``from conftest import ...``.
 """
 import atexit
+import functools
 import gc
 import os
 import shutil
@@ -232,6 +233,27 @@ def assert_gradient_equals_central_differences(f, theta, h=1e-5, rtol=1e-5,
     assert np.all(np.isfinite(np.asarray(g)))
     assert (np.abs(fd).min() if every_component else np.abs(fd).max()) > 1e-6
     np.testing.assert_allclose(g, fd, rtol=rtol, atol=1e-7 * np.abs(fd).max())
+
+
+# ----------------------------------------------------------------------------- tendons
+def tendon_length_changes(result):
+    """The length changes (T, M), m, of the tendons from their stress-free shape along the
+    rollout of ``result`` (an ``sj.run`` result):
+    :func:`simsoft_jax.couplings.tendon_lengths.length_changes` at every saved state, one
+    compiled program per structure (vmapped eagerly, each of its operations compiles on
+    its own: about a hundred small programs)."""
+    import jax.numpy as jnp
+
+    return np.asarray(_vmapped_length_changes()(
+        result.model, jnp.asarray(result.raw.R), jnp.asarray(result.raw.p)))
+
+
+@functools.cache
+def _vmapped_length_changes():
+    import jax
+
+    from simsoft_jax.couplings import tendon_lengths
+    return jax.jit(jax.vmap(tendon_lengths.length_changes, in_axes=(None, 0, 0)))
 
 
 # ----------------------------------------------------------------------- rod-rod contact

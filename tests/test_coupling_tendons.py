@@ -11,14 +11,13 @@ along y (the scene is symmetric about the plane y = 0 and the contact is frictio
 so it moves as the same drive without the slide; derivatives of the differentiable
 rollout equal central finite differences.
 """
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from conftest import assert_gradient_equals_central_differences, crossing_rod
-from simsoft_jax.couplings import tendon_lengths
+from conftest import (assert_gradient_equals_central_differences, crossing_rod,
+                      tendon_length_changes)
 
 EA, GA, GJ, EI = 2e3, 1e3, 0.4, 0.5
 STIFFNESS = {"EA": EA, "GAy": GA, "GAz": GA, "GJ": GJ, "EIy": EI, "EIz": EI}
@@ -67,18 +66,9 @@ def route_positions(result, welded):
     return np.concatenate([result.positions("a"), result.positions("b")[:, 1:]], axis=1)
 
 
-@jax.jit
-def _length_changes(model, R, p):
-    """The tendons' length changes (T, M) along a rollout's frames R (T,N,3,3), p (T,N,3):
-    one compiled program per structure (eagerly, each of the vmapped operations compiles
-    on its own: a hundred small programs)."""
-    return jax.vmap(lambda R, p: tendon_lengths.length_changes(model, R, p))(R, p)
-
-
 def length_changes(result):
     """The first tendon's length change (T,), m, along ``result``'s rollout."""
-    return np.asarray(_length_changes(result.model, jnp.asarray(result.raw.R),
-                                      jnp.asarray(result.raw.p)))[:, 0]
+    return tendon_length_changes(result)[:, 0]
 
 
 def law(t):
