@@ -30,6 +30,7 @@ pytest puts this folder on ``sys.path`` (its default ``prepend`` import mode, no
 ``__init__.py`` here), so test modules import the helpers with ``from conftest import ...``.
 """
 import atexit
+import functools
 import gc
 import os
 import shutil
@@ -202,21 +203,57 @@ def pure_bending_scene(moment, EI, elements=4):
 
 
 # ----------------------------------------------------------------------------- gradients
+def primal(f, theta):
+    """``f(theta)`` as reverse mode evaluates it (``jax.vjp``'s primal output; its
+    backward pass is never run): the same value, by the forward programs of
+    ``jax.grad(f)``. Called plainly, a rollout with ``differentiable=True`` compiles a
+    rollout program of its own, while ``jax.grad``'s forward pass runs the program of
+    ``sj.run`` (compiled once per structure): measured, a third to two thirds of a
+    gradient test's compile time."""
+    import jax
+
+    return jax.vjp(f, theta)[0]
+
+
 def assert_gradient_equals_central_differences(f, theta, h=1e-5, rtol=1e-5,
                                                every_component=True):
     """``jax.grad(f)(theta)`` equals the central differences of step ``h`` of the scalar
     ``f`` (theta (P,)) to ``rtol`` (and 1e-7 of the largest component), each component
     of the difference nonzero (so the check can fail; only the largest with
-    ``every_component=False``, for a parameter the answer does not depend on)."""
+    ``every_component=False``, for a parameter the answer does not depend on).
+
+    The differences take ``f``'s values as :func:`primal` evaluates them: the programs
+    ``jax.grad`` runs forward already, none compiled for the differences alone."""
     import jax
 
     theta = np.asarray(theta, float)
     g = jax.grad(f)(theta)
-    fd = np.array([(f(theta + h * e) - f(theta - h * e)) / (2 * h)
+    fd = np.array([(primal(f, theta + h * e) - primal(f, theta - h * e)) / (2 * h)
                    for e in np.eye(theta.size)])
     assert np.all(np.isfinite(np.asarray(g)))
     assert (np.abs(fd).min() if every_component else np.abs(fd).max()) > 1e-6
     np.testing.assert_allclose(g, fd, rtol=rtol, atol=1e-7 * np.abs(fd).max())
+
+
+# ----------------------------------------------------------------------------- tendons
+def tendon_length_changes(result):
+    """The length changes (T, M), m, of the tendons from their stress-free shape along the
+    rollout of ``result`` (an ``sj.run`` result):
+    :func:`simsoft_jax.couplings.tendon_lengths.length_changes` at every saved state, one
+    compiled program per structure (vmapped eagerly, each of its operations compiles on
+    its own: about a hundred small programs)."""
+    import jax.numpy as jnp
+
+    return np.asarray(_vmapped_length_changes()(
+        result.model, jnp.asarray(result.raw.R), jnp.asarray(result.raw.p)))
+
+
+@functools.cache
+def _vmapped_length_changes():
+    import jax
+
+    from simsoft_jax.couplings import tendon_lengths
+    return jax.jit(jax.vmap(tendon_lengths.length_changes, in_axes=(None, 0, 0)))
 
 
 # ----------------------------------------------------------------------- rod-rod contact

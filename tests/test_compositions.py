@@ -1,9 +1,13 @@
 """Couplings composed in one scene, checked against closed forms and equivalences: a rod
 chain welded end to end behaves exactly as one rod, whatever else is in the scene."""
+import functools
+
+import jax
 import numpy as np
 import pytest
 
 import simsoft_jax as sj
+from simsoft_jax.solvers import stability
 from conftest import assert_gradient_equals_central_differences, crossing_rod
 
 L, RHOA, ELEMENTS = 0.5, 2.0, 4
@@ -128,13 +132,18 @@ def cantilever_on_a_rod(welded: bool, kind="static"):
                         "quadrature_points": 4}}
 
 
+@functools.lru_cache(maxsize=None)
+def cantilever_run(welded: bool, kind: str):
+    """``sj.run`` of :func:`cantilever_on_a_rod`, once per module for the tests below."""
+    return sj.run(sj.Scene.from_dict(cantilever_on_a_rod(welded, kind)))
+
+
 @pytest.mark.parametrize("kind", ["static", "dynamic"])
 def test_welded_cantilever_on_a_rod_equals_one_rod(kind):
     """Rod-rod contact with a weld at the crossing: the welded pair gives the one rod's
     answer (the weld's two elements never touch each other), and the contact holds it
     (its middle stays on the lower rod while a free cantilever would sink through)."""
-    pair = sj.run(sj.Scene.from_dict(cantilever_on_a_rod(True, kind)))
-    one = sj.run(sj.Scene.from_dict(cantilever_on_a_rod(False, kind)))
+    pair, one = cantilever_run(True, kind), cantilever_run(False, kind)
     assert pair.converged and one.converged
     both = np.concatenate([pair.positions("a"), pair.positions("b")[..., 1:, :]], axis=-2)
     ref = one.positions("a")
@@ -150,10 +159,16 @@ def test_welded_cantilever_on_a_rod_equals_one_rod(kind):
 
 # ------------------------------------------------ stability count of the coupled tangent
 
-def _dense_contact_count(model, R, p):
-    """Negative eigenvalues of the symmetric part of the whole constrained tangent with
-    the rod-rod contact, assembled densely here (chains + U W U^T), and its smallest
-    eigenvalue magnitude."""
+# the count, compiled: one program per structure instead of its hundreds of operations
+# compiled one by one
+negative_eigenvalues = jax.jit(stability.negative_eigenvalues)
+
+
+@jax.jit
+def _tangent_parts(model, R, p):
+    """The rods' dense tangent (6N, 6N) and the rod-rod contact's coupling factors B, C
+    at the full loads (one compiled program per structure; eagerly, each of its
+    operations compiles on its own: hundreds of small programs)."""
     from simsoft_jax.math import linalg
     from simsoft_jax.couplings import rod_pairs
     from simsoft_jax.physics.assembly import residual_and_tangent
@@ -162,10 +177,18 @@ def _dense_contact_count(model, R, p):
     loaded = full_loads(model)
     r, blocks = residual_and_tangent(loaded, R, p, 1.0)
     _, blocks, c = rod_pairs.system(loaded, R, p, r, blocks)
+    return linalg.dense(blocks), c.B, c.C
+
+
+def _dense_contact_count(model, R, p):
+    """Negative eigenvalues of the symmetric part of the whole constrained tangent with
+    the rod-rod contact, assembled densely here (chains + U W U^T), and its smallest
+    eigenvalue magnitude."""
+    K, B, C = map(np.asarray, _tangent_parts(model, R, p))
     n = R.shape[0]
-    U = np.asarray(c.B).reshape(6 * n, -1)
-    W = np.einsum("anj,njb->ab", np.asarray(c.C), np.asarray(c.B))
-    K = np.asarray(linalg.dense(blocks)) + U @ W @ U.T
+    U = B.reshape(6 * n, -1)
+    W = np.einsum("anj,njb->ab", C, B)
+    K = K + U @ W @ U.T
     eigenvalues = np.linalg.eigvalsh(0.5 * (K + K.T))
     return int(np.sum(eigenvalues < 0.0)), float(np.abs(eigenvalues).min())
 
@@ -173,10 +196,7 @@ def _dense_contact_count(model, R, p):
 def test_stability_count_with_rod_contact_equals_the_dense_count():
     """The count through the bordered system (stable crossing: 0) and, with a softening
     that makes the rods' tangent indefinite, the same count as the dense tangent."""
-    from simsoft_jax.solvers.stability import negative_eigenvalues
-
-    scene = sj.Scene.from_dict(cantilever_on_a_rod(False))
-    result = sj.run(scene)
+    result = cantilever_run(False, "static")
     assert result.converged and result.stability["negative_eigenvalues"] == 0
     model, eq = result.model, result.raw
     assert _dense_contact_count(model, eq.R, eq.p)[0] == 0
@@ -191,10 +211,7 @@ def test_stability_count_with_rod_contact_equals_the_dense_count():
 def test_stability_count_with_contact_and_a_weld_equals_one_rod():
     """Joints and rod-rod contact together: the welded pair counts as the one rod, for a
     stable equilibrium and for an indefinite (softened) tangent."""
-    from simsoft_jax.solvers.stability import negative_eigenvalues
-
-    pair = sj.run(sj.Scene.from_dict(cantilever_on_a_rod(True)))
-    one = sj.run(sj.Scene.from_dict(cantilever_on_a_rod(False)))
+    pair, one = cantilever_run(True, "static"), cantilever_run(False, "static")
     assert pair.stability["negative_eigenvalues"] == one.stability["negative_eigenvalues"] == 0
     for model, result in ((pair.model, pair), (one.model, one)):
         assert result.converged

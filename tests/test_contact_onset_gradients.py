@@ -62,23 +62,25 @@ def thrown(kind, far=False, velocity=(0.25, 0.0, -0.05)):
 
 
 def _tip(model):
-    return jnp.dot(sj.simulate(model, SETTINGS, differentiable=True).p[-1, -1], WEIGHTS)
+    """The weighted final tip and whether the rollout converged (aux)."""
+    traj = sj.simulate(model, SETTINGS, differentiable=True)
+    return jnp.dot(traj.p[-1, -1], WEIGHTS), traj.converged
 
 
-# one program for the gradient and the finite differences, for all three obstacles
-TIP_AND_GRADIENT = jax.jit(jax.value_and_grad(_tip))
+# one program for the gradient, the rollout's convergence and the finite differences, for
+# all three obstacles (a plain call of the differentiable rollout would compile another)
+TIP_AND_GRADIENT = jax.jit(jax.value_and_grad(_tip, has_aux=True))
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", sorted(OBSTACLES))
 def test_thrown_from_gap_zero_with_friction_gradients_match_finite_differences(kind):
     model = sj.build_model(sj.Scene.from_dict(thrown(kind, far=True)))
-    start = sj.simulate(model, SETTINGS, differentiable=True)
-    assert bool(start.converged), start.message()
-    _, grad = TIP_AND_GRADIENT(model)
+    (_, converged), grad = TIP_AND_GRADIENT(model)
+    assert bool(converged)
     assert all(bool(jnp.all(jnp.isfinite(x))) for x in jax.tree_util.tree_leaves(grad)
                if jnp.issubdtype(x.dtype, jnp.floating))
-    f = lambda **change: float(TIP_AND_GRADIENT(model.replace(**change))[0])  # noqa: E731
+    f = lambda **change: float(TIP_AND_GRADIENT(model.replace(**change))[0][0])  # noqa: E731
     direction = jnp.asarray(np.random.default_rng(0).standard_normal(model.v0.shape))
     e = 1e-6
     fd = (f(v0=model.v0 + e * direction) - f(v0=model.v0 - e * direction)) / (2 * e)
@@ -106,19 +108,25 @@ def test_thrown_onto_a_stiff_plane_the_differentiable_rollout_sub_steps_like_the
     model = sj.build_model(sj.Scene.from_dict(scene))
     settings = sj.DynamicSettings(dt=0.01, steps=10, tolerance=1e-13)
     plain = sj.simulate(model, settings)
-    smooth = sj.simulate(model, settings, differentiable=True)
-    assert bool(plain.converged) and bool(smooth.converged), smooth.message()
-    assert int(np.max(plain.substeps)) > 1                     # the impact was sub-stepped
-    np.testing.assert_allclose(smooth.p, plain.p, rtol=0, atol=1e-12)
     weights = jnp.asarray([0.3, -0.2, 1.0])
-    both = jax.jit(jax.value_and_grad(lambda v0: jnp.dot(sj.simulate(
-        model.replace(v0=v0), settings, differentiable=True).p[-1, -1], weights)))
-    _, grad = both(model.v0)
+
+    def tip(v0):
+        """The weighted final tip; aux: the differentiable rollout's positions and
+        convergence (from the gradient's own program: a plain call of the differentiable
+        rollout would compile another)."""
+        smooth = sj.simulate(model.replace(v0=v0), settings, differentiable=True)
+        return jnp.dot(smooth.p[-1, -1], weights), (smooth.p, smooth.converged)
+
+    both = jax.jit(jax.value_and_grad(tip, has_aux=True))
+    (_, (smooth_p, smooth_converged)), grad = both(model.v0)
+    assert bool(plain.converged) and bool(smooth_converged), plain.message()
+    assert int(np.max(plain.substeps)) > 1                     # the impact was sub-stepped
+    np.testing.assert_allclose(smooth_p, plain.p, rtol=0, atol=1e-12)
     assert bool(jnp.all(jnp.isfinite(grad)))
     direction = jnp.asarray(np.random.default_rng(1).standard_normal(model.v0.shape))
     e = 1e-7
-    fd = (float(both(model.v0 + e * direction)[0])
-          - float(both(model.v0 - e * direction)[0])) / (2 * e)
+    fd = (float(both(model.v0 + e * direction)[0][0])
+          - float(both(model.v0 - e * direction)[0][0])) / (2 * e)
     np.testing.assert_allclose(float(jnp.vdot(grad, direction)), fd, rtol=1e-4, atol=1e-9)
 
 

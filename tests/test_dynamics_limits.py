@@ -74,16 +74,20 @@ def test_differentiable_rollout_sub_steps_and_its_gradient_is_the_spin_rate():
     (rigid spin: angle = omega t), through every sub-step's implicit derivative."""
     model = sj.build_model(sj.Scene.from_dict(spin()))
     settings = sj.DynamicSettings(dt=DT, steps=3)
-    traj = sj.simulate(model, settings, differentiable=True)
-    assert bool(traj.converged), traj.message()
-    assert np.all(np.asarray(traj.substeps) >= 7)
 
     def final_angle(omega):
+        """The final spin angle; aux: the differentiable rollout's convergence and
+        sub-steps (from the gradient's own program: a plain call of the differentiable
+        rollout would compile another)."""
         changed = model.replace(v0=model.v0.at[:, 3].set(omega))
-        R = sj.simulate(changed, settings, differentiable=True).R[-1, -1]
-        return jnp.arctan2(R[2, 1], R[1, 1])
+        traj = sj.simulate(changed, settings, differentiable=True)
+        R = traj.R[-1, -1]
+        return jnp.arctan2(R[2, 1], R[1, 1]), (traj.converged, traj.substeps)
 
-    value, slope = jax.jit(jax.value_and_grad(final_angle))(jnp.asarray(OMEGA))
+    (value, (converged, substeps)), slope = jax.jit(jax.value_and_grad(
+        final_angle, has_aux=True))(jnp.asarray(OMEGA))
+    assert bool(converged)
+    assert np.all(np.asarray(substeps) >= 7)
     assert abs(float(wrapped(float(value) - OMEGA * 3 * DT))) < 1e-8
     assert abs(float(slope) - 3 * DT) < 1e-8
 

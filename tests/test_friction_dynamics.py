@@ -168,21 +168,21 @@ def test_gradient_through_a_rollout_with_stick_slip_friction_matches_finite_diff
     anchors carry the friction's history through every step) after 10 steps, by reverse
     mode through ``simulate(differentiable=True)`` against central finite differences of
     the same rollout (relative steps 1e-5; agreement to 1e-4). Both blocks share one
-    structure: one compiled value and one compiled gradient program."""
+    structure: one compiled program for the gradient and the differences' values."""
     settings = sj.DynamicSettings(dt=DT, steps=10, rho_inf=0.5)
 
     def final_x(model):
         return sj.simulate(model, settings, differentiable=True).p[-1, :, 0].mean()
 
-    value, gradient = jax.jit(final_x), jax.jit(jax.grad(final_x))
+    both = jax.jit(jax.value_and_grad(final_x))
     slide = sj.build_model(sj.Scene.from_dict(block_scene(1.2 * MU_B)))
     hold = sj.build_model(sj.Scene.from_dict(block_scene(0.8 * MU_B)))
     cases = [(slide, "obstacle_friction", lambda x, q: x.at[0].set(q), MU_B),
              (hold, "gravity", lambda x, q: x.at[0].set(q), float(hold.gravity[0]))]
     for model, field, put, at in cases:
-        grad = float(getattr(gradient(model), field)[0])
+        grad = float(getattr(both(model)[1], field)[0])
         h = 1e-5 * abs(at)
-        moved = [value(model.replace(**{field: put(getattr(model, field), q)}))
+        moved = [both(model.replace(**{field: put(getattr(model, field), q)}))[0]
                  for q in (at + h, at - h)]
         fd = float(moved[0] - moved[1]) / (2.0 * h)
         assert abs(grad) > 0.0

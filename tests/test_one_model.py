@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
+from conftest import primal
 from simsoft_jax.math import lie
 
 ROD = {"name": "arm", "elements": 4, "geometry": {"kind": "arc", "radius": 1.5, "angle_deg": 30},
@@ -133,11 +134,12 @@ def _check_every_leaf(model, scalar, skip=(), rtol=1e-5):
     """Reverse-mode gradient of ``scalar(model)`` along a random direction of every float
     leaf against central finite differences (1e-5 relative, above the differences' noise
     floor). Returns the leaves whose derivative is non-zero (so the test knows which ones
-    were really exercised)."""
+    were really exercised). The differences take the values by :func:`conftest.primal`
+    (the programs of the gradient's forward pass, none compiled for them alone)."""
     rng = np.random.default_rng(7)
     grad = jax.grad(scalar)(model)
     grads = dict(_named_leaves(grad))
-    value = float(scalar(model))
+    value = float(primal(scalar, model))
     moved = []
     for name, leaf in _named_leaves(model):
         if name in skip or not jnp.issubdtype(jnp.asarray(leaf).dtype, jnp.floating) or leaf.size == 0:
@@ -151,8 +153,9 @@ def _check_every_leaf(model, scalar, skip=(), rtol=1e-5):
             direction = _direction(leaf, rng)
             analytic = float(jnp.sum(grads[name] * direction))
         eps = 1e-6
-        fd = (float(scalar(_perturb(model, name, jnp.asarray(direction), eps)))
-              - float(scalar(_perturb(model, name, jnp.asarray(direction), -eps)))) / (2 * eps)
+        fd = (float(primal(scalar, _perturb(model, name, jnp.asarray(direction), eps)))
+              - float(primal(scalar, _perturb(model, name, jnp.asarray(direction), -eps)))
+              ) / (2 * eps)
         # 1e-5 relative; the floor is the noise of a central difference of solves
         # converged to ~1e-13 (relative) with a step of 1e-6: ~1e-7 of the scalar
         assert abs(analytic - fd) <= rtol * abs(fd) + 1e-6 * abs(value), (name, analytic, fd)

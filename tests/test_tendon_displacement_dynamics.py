@@ -13,10 +13,8 @@ that tension control needs for the same shape", in dynamics)."""
 import numpy as np
 import pytest
 
-import jax
-import jax.numpy as jnp
 import simsoft_jax as sj
-from simsoft_jax.couplings import tendon_lengths
+from conftest import tendon_length_changes
 
 EA, GA, GJ, EI = 2e3, 1e3, 0.4, 0.5
 STIFFNESS = {"EA": EA, "GAy": GA, "GAz": GA, "GJ": GJ, "EIy": EI, "EIz": EI}
@@ -48,9 +46,7 @@ def test_length_follows_its_law_and_the_tension_settles_at_the_closed_form(pulle
     t = np.asarray(pulled.time)
     x = np.clip(t / RAMP, 0.0, 1.0)
     target = DELTA * (3 * x**2 - 2 * x**3)
-    model = pulled.model
-    change = jax.vmap(lambda R, p: tendon_lengths.length_changes(model, R, p))(
-        jnp.asarray(pulled.raw.R), jnp.asarray(pulled.raw.p))[:, 0]
+    change = tendon_length_changes(pulled)[:, 0]
     assert np.abs(np.asarray(change) - target).max() < 1e-10 * L
     tension = pulled.tendon_tension("t")
     assert tension.shape == t.shape and not pulled.slack_tendons

@@ -21,14 +21,13 @@ import subprocess
 import sys
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import root
 
 import simsoft_jax as sj
-from conftest import REPO_ROOT
+from conftest import REPO_ROOT, tendon_length_changes
 
 EA, GA, GJ, EI = 2e3, 1e3, 0.4, 0.5
 STIFFNESS = {"EA": EA, "GAy": GA, "GAz": GA, "GJ": GJ, "EIy": EI, "EIz": EI}
@@ -382,8 +381,6 @@ def test_dynamic_displacement_control_with_a_welded_body_follows_its_law():
     """A displacement-controlled tendon in a dynamic scene with joints (a body welded at
     the tip): the length change follows its law at every step, to 1e-10 of the rod's
     length, and the tension is reported (the multiplier after the weld's)."""
-    from simsoft_jax.couplings import tendon_lengths
-
     item = {k: v for k, v in TENDON.items() if k != "tension"}
     pull = {"kind": "smoothstep", "t0": 0.0, "t1": 0.1}
     scene = rod_scene(4, tendons=[dict(item, displacement=-0.005, profile=pull)],
@@ -393,9 +390,7 @@ def test_dynamic_displacement_control_with_a_welded_body_follows_its_law():
     scene["solver"] = {"kind": "dynamic", "dt": 0.01, "t_end": 0.1}
     result = sj.run(scene)
     assert result.converged
-    model = result.model
-    change = np.asarray(jax.vmap(lambda R, p: tendon_lengths.length_changes(model, R, p))(
-        jnp.asarray(result.raw.R), jnp.asarray(result.raw.p)))[:, 0]
+    change = tendon_length_changes(result)[:, 0]
     x = np.clip(np.asarray(result.time) / 0.1, 0.0, 1.0)
     assert np.abs(change - (-0.005) * (3 * x**2 - 2 * x**3)).max() < 1e-10 * 0.5
     assert result.tendon_tension("t1")[-1] > 0.0
