@@ -9,7 +9,10 @@ output goes to a log file and is printed whole when the lane ends (never interle
 with its 25 slowest tests;
 the last line sums both lanes in pytest's words
 (``total: N passed, N failed, N skipped``). The exit status is 0 only when both lanes pass
-(a lane that selects no test at all, pytest's status 5, counts as passed).
+(a lane that selects no test at all, pytest's status 5, counts as passed). Each lane runs
+with ``OPENBLAS_NUM_THREADS=1`` unless the environment sets it: one process per core, so
+OpenBLAS's own threads in JAX's dense factorizations would only compete with the other
+lane (``simsoft_jax.math.blas_threads``).
 """
 from __future__ import annotations
 
@@ -46,11 +49,12 @@ def main(extra: list[str]) -> int:
     logs = Path(tempfile.mkdtemp(prefix="simsoft_lanes_"))
     started = time.perf_counter()
     procs = []
+    env = {"OPENBLAS_NUM_THREADS": "1", **os.environ}
     for name, *selection in LANES:
         log = open(logs / f"{name.replace(' ', '_')}.log", "w", encoding="utf-8")
         proc = subprocess.Popen([sys.executable, "-m", "pytest", "-q", f"--durations={SLOWEST}",
                                  *selection, *extra],
-                                cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, env=os.environ)
+                                cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, env=env)
         procs.append((name, proc, log))
     total = {key: 0 for key in OUTCOMES}
     status = 0

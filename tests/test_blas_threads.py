@@ -14,8 +14,10 @@ def test_limit_is_applied_in_the_block_and_restored_after_it():
     if not controls:
         pytest.skip("no OpenBLAS loaded in this process")
     before = [c.get() for c in controls]
-    with lapack_threads(1):
-        assert [c.get() for c in controls] == [1] * len(controls)
+    with lapack_threads(3):                     # whatever the environment set
+        with lapack_threads(1):
+            assert [c.get() for c in controls] == [1] * len(controls)
+        assert [c.get() for c in controls] == [3] * len(controls)
     assert [c.get() for c in controls] == before
     with pytest.raises(RuntimeError), lapack_threads(1):
         raise RuntimeError("inside")
