@@ -6,8 +6,9 @@ turned onto the points' chord tangent (:func:`~simsoft_jax.scene.start_frames.in
 Those frames are not in moment balance: the bending of the chord polygon and the shear of
 the elements on either side of a node leave moment rows of the residual (spec S47/S70) that
 the tiny rotational inertia of a slender section turns into huge rotational accelerations
-(a rope of 51 elements: 0.018 rad off balance, 7e5 rad/s^2 at the start), a transient that
-the time steps must resolve. The rotational inertia of a section is negligible next to its
+(the crossing ropes of cosseratbench, 51 elements: up to 0.016 rad off balance, 7e5
+rad/s^2 at the start; relaxed in 3 Newton iterations), a transient that the time steps
+must resolve. The rotational inertia of a section is negligible next to its
 bending and shear stiffness, so the rotations reach moment balance at once: the consistent
 start holds the positions and solves the moment rows of the static residual at the loads
 of ``t = 0`` (gravity included) for the rotations,
