@@ -558,7 +558,9 @@ def _balanced_start(scene, model: Model) -> Model:
     (:func:`~simsoft_jax.scene.start_frames.chord_started`) in moment balance, positions
     held (:func:`simsoft_jax.solvers.start_balance.balanced_rotations`; one compile per
     structure); the chord frames stay, with a warning, where that Newton solve fails.
-    Joint nodes keep their chord frames."""
+    Joint nodes keep their chord frames. The relaxed frames are the model's ``R0``, data
+    like given ``initial.rotations``: derivatives with respect to the model's arrays hold
+    them fixed."""
     s = model.structure
     relaxed = np.zeros(s.n_nodes, bool)
     for rod, info in zip(scene.rods, s.rods):
