@@ -22,6 +22,7 @@ there is no second object to rebuild.
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from typing import NamedTuple
 
 import jax
@@ -38,7 +39,7 @@ from ..scene.scene_contact import QUADRATURE_POINTS, contact_tables, motion_prof
 from ..scene.scene_mechanisms import jointed_rods
 from ..scene.scene_start import check_start, unheld_rods
 from ..scene.sections import inertia_diagonal, stiffness_diagonal, viscosity_diagonal
-from ..scene.start_frames import initial_frames, world_frames
+from ..scene.start_frames import chord_started, initial_frames, world_frames
 from ..scene.supports import AXES
 
 
@@ -547,5 +548,33 @@ def build_model(scene, device: bool = True) -> Model:
                   magnetic=magnetic_part(scene), fluid=fluid_part(scene),
                   **{k: None if a is None else np.asarray(a, np.float64)
                      for k, a in arrays.items()})
+    model = _balanced_start(scene, model)
     # one batched transfer (a device_put per array costs more than the arrays' numbers)
     return jax.device_put(model) if device else model
+
+
+def _balanced_start(scene, model: Model) -> Model:
+    """``model`` with the start rotations of the rods started from points alone
+    (:func:`~simsoft_jax.scene.start_frames.chord_started`) in moment balance, positions
+    held (:func:`simsoft_jax.solvers.start_balance.balanced_rotations`; one compile per
+    structure); the chord frames stay, with a warning, where that Newton solve fails.
+    Joint nodes keep their chord frames. The relaxed frames are the model's ``R0``, data
+    like given ``initial.rotations``: derivatives with respect to the model's arrays hold
+    them fixed."""
+    s = model.structure
+    relaxed = np.zeros(s.n_nodes, bool)
+    for rod, info in zip(scene.rods, s.rods):
+        relaxed[info.first_node:info.first_node + info.nodes] = chord_started(rod)
+    relaxed[list(s.coupling_nodes)] = False
+    if not relaxed.any():
+        return model
+    from ..solvers import compile_cache   # the solvers import this module
+    from ..solvers.start_balance import balanced_rotations
+    compile_cache.enable()
+    balance = balanced_rotations(model, relaxed)
+    if not bool(balance.converged):
+        warnings.warn("initial: the start rotations of the rods started from points alone "
+                      "did not reach moment balance (their chord frames are kept; give "
+                      "initial.rotations to choose them)", stacklevel=3)
+        return model
+    return model.replace(R0=np.asarray(balance.R))

@@ -27,7 +27,9 @@ def initial_frames(rod, R_ref, p_ref):
     (base frame) when given, else each stress-free frame turned by the smallest rotation
     onto the points' chord tangent (a straight rod stretched along itself keeps its
     reference rotations exactly). Any other count: a polyline, its nodes at the rod's
-    node fractions of its arc length.
+    node fractions of its arc length. Without ``initial.rotations`` these chord frames
+    are out of moment balance; the model puts them in balance with the positions held
+    (:func:`chord_started`, :mod:`simsoft_jax.solvers.start_balance`).
     """
     if rod.initial_points is None:
         return R_ref, p_ref
@@ -42,3 +44,12 @@ def initial_frames(rod, R_ref, p_ref):
     R, p = geom.polyline_frames(points, rod.node_fractions(), start_rotation=Rb.T @ R_ref[0])
     return np.einsum("ij,njk->nik", Rb, R), pb + p @ Rb.T
 
+
+
+def chord_started(rod) -> bool:
+    """Whether the rod starts from ``initial.points`` without ``initial.rotations``: its
+    start rotations are the chord frames of :func:`initial_frames`, which the model
+    relaxes into moment balance with the positions held
+    (:mod:`simsoft_jax.solvers.start_balance`)."""
+    return (rod.initial_points is not None
+            and getattr(rod, "initial_rotations", None) is None)

@@ -197,7 +197,8 @@ def _assemble(model: Model, packed, layout, blocks: int, t_end: float, dt: float
 def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
             save_every: int = 1, progress=None, compiled=None,
             tolerance: float = 1e-10, max_iterations: int = 25, tangent: str = "closed_form",
-            max_halvings: int = 6, cut: bool = True, state: State | None = None):
+            max_halvings: int = 6, cut: bool = True, state: State | None = None,
+            globalized: bool = False):
     """Run from the start state to exactly ``t_end``, saving every ``save_every``-th state.
 
     Steps of ``dt`` (s); what is left before ``t_end`` when ``t_end/dt`` or ``save_every``
@@ -217,7 +218,8 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
     compiled programs. Returns ``(Trajectory, compile_seconds)``; the trajectory holds
     NumPy arrays (``final``: the state after the last computed block). ``state``: a
     :class:`State` to start from instead (concrete arrays, without stick-slip anchors);
-    the run then lasts ``t_end`` from ``state.t``, with the same program.
+    the run then lasts ``t_end`` from ``state.t``, with the same program. ``globalized``:
+    Newton's globalization (:class:`~.scheme.DynamicSettings`; part of the program).
     """
     if not 0.0 < dt <= t_end:
         raise ValueError(f"solver.dt: must be in (0, t_end = {t_end:g}], got {dt:g}")
@@ -228,7 +230,7 @@ def rollout(model: Model, dt: float, t_end: float, rho_inf: float = 0.9,
     settings = as_traced(DynamicSettings(
         dt=float(dt), steps=per_chunk * save_every, rho_inf=float(rho_inf),
         save_every=save_every, tolerance=float(tolerance), max_iterations=int(max_iterations),
-        max_halvings=int(max_halvings), tangent=tangent))
+        max_halvings=int(max_halvings), tangent=tangent, globalized=globalized))
     compiled = {} if compiled is None else compiled
     key = ("rollout", per_chunk) + compile_key(model, settings)
     compile_seconds = 0.0

@@ -3,7 +3,8 @@ derivative, and sub-stepping of a macro step on failure.
 
 The factorized iteration matrix ``S_t`` (S61) is kept in a :class:`~.memory.NewtonMemory`
 and reused over iterations and steps while the iteration contracts; the starting guess
-comes from :func:`~.memory.predicted_increment`. Held dofs (clamps, pins, drives) are
+comes from :func:`~.memory.predicted_increment` (globalized: the guess with the least
+residual, and a line search, :func:`newton_step`). Held dofs (clamps, pins, drives) are
 eliminated: their ``w`` is prescribed (spec 4.5). Each failed Newton solve records why
 (:class:`~simsoft_jax.solvers.status.Status`: iteration limit, non-finite, off the rotation branch).
 """
@@ -48,6 +49,35 @@ _RENEW_CONTRACTION = 0.03
 # for stations moving up to the predicted motion plus this fraction of the largest
 # contact radius (m) from there; again only where an iterate moves one further.
 _PAIR_MOTION_FLOOR = 0.1
+# Line search (settings.globalized): a fresh correction is halved while the merit at the
+# iterate it leads to exceeds the merit where it started and the fraction of it applied
+# is above this (1, 1/2, ..., 1/16; the last is kept whatever its merit).
+_MIN_FRACTION = 0.1
+
+
+def least_residual(model, fns, guesses, mu):
+    """The guess of ``guesses`` (K,N,6) whose step residual (``fns.system_residual`` with
+    multipliers mu (M,)) has the smallest :func:`merit`; held dofs are set afterwards.
+
+    A slack, nearly inextensible rope's nodal rotations carry almost no inertia: their
+    accelerations swing from step to step, and extrapolated
+    (:func:`~.memory.predicted_increment`) they turn nodes by radians in one step (up to
+    18 rad measured on a slack rope pinned at both ends, 40 ms steps), so that the first
+    correction leaves the rotation branch or Newton wanders off and the step is halved
+    again and again; the constant-velocity or zero increment starts within reach
+    (benchmarks/README.md, "Newton on slack ropes")."""
+    return guesses[jnp.argmin(jax.lax.map(
+        lambda w: merit(model, *fns.system_residual(w, mu)), guesses))]
+
+
+def merit(model, r, r_z):
+    """Size (N) of a step's residual ``(r (N,6), r_z (m,))``: the chains'
+    :func:`~simsoft_jax.solvers.newton.weighted_norm` (forces in N, moments / char_length)
+    and the coupling nodes' forces (:func:`~simsoft_jax.couplings.coupling.violation`; the
+    joints' gaps are held by the convergence test)."""
+    res = weighted_norm(model, r)
+    violation = coupling.violation(model, r_z)
+    return res if violation is None else jnp.sqrt(res ** 2 + violation[0] ** 2)
 
 
 class _NewtonCarry(NamedTuple):
@@ -57,7 +87,10 @@ class _NewtonCarry(NamedTuple):
     this step (rebuilt), the weighted residual norm at the last iterate, the joint
     multipliers mu (M,), the last observed contraction theta (0 before there is one), and
     the rod-rod contact's candidate pairs (:class:`~simsoft_jax.couplings.rod_pairs.Tracked`,
-    None without rod contact)."""
+    None without rod contact); for the line search (``settings.globalized``) the iterate
+    and multipliers the last fresh correction started from (base, base_mu), its merit
+    there (base_merit), that correction (step (N,6), step_mu (M,)) and the fraction of
+    it applied (0: no correction on trial)."""
     w: jax.Array
     iterations: jax.Array
     status: jax.Array
@@ -69,6 +102,12 @@ class _NewtonCarry(NamedTuple):
     mu: jax.Array
     theta: jax.Array
     tracked: object = None
+    base: jax.Array = None
+    base_mu: jax.Array = None
+    base_merit: jax.Array = None
+    step: jax.Array = None
+    step_mu: jax.Array = None
+    fraction: jax.Array = None
 
 
 class StepResult(NamedTuple):
@@ -83,7 +122,8 @@ class StepResult(NamedTuple):
 
 
 def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepResult:
-    """Modified Newton on F(w) = 0 (spec S66) from :func:`memory.predicted_increment`.
+    """Modified Newton on F(w) = 0 (spec S66) from :func:`memory.predicted_increment`
+    (or, with ``settings.globalized``, from the guess of :func:`least_residual`).
 
     The factorized iteration matrix ``S_t`` (S61) is reused from earlier iterations and
     earlier steps of the same size h; only the residual is evaluated at each iterate. A
@@ -107,7 +147,12 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     resolved; :func:`advance` sub-steps it; also, before any iteration, when a drive
     turns by pi/2 or more in the step, :func:`~simsoft_jax.couplings.drives.drive_turn`), or at
     ``max_iterations``
-    (MAX_ITERATIONS). With joints the unknowns are ``w`` and the
+    (MAX_ITERATIONS). With ``settings.globalized``, a backtracking line search: when the
+    iterate a fresh (exact Newton) correction led to has a larger :func:`merit` than
+    the iterate it started from, the correction is halved from there (the matrix kept),
+    while more than ``_MIN_FRACTION`` of it is applied; exact Newton on a slack, nearly inextensible rod
+    overshoots (the linearized stretch of a turning element), and its residual then
+    grows from iterate to iterate until the step is halved. With joints the unknowns are ``w`` and the
     joint multipliers (index-3 form, Arnold & Bruls 2007: the constraints ``g(q_{n+1}) = 0``
     and forces ``G^T mu`` at ``t_{n+1}``), solved in the bordered system of
     :mod:`simsoft_jax.couplings.mechanisms`; converged also needs the joints to hold to the
@@ -123,6 +168,10 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     mask = model.structure.free_mask()
     alpha_m, alpha_f, _, beta = alpha_parameters(settings.rho_inf)
     w0 = predicted_increment(state.v, state.vd, state.a, h, memory, alpha_m, alpha_f, beta)
+    globalized = settings.globalized
+    if globalized:
+        w0 = least_residual(model, fns, jnp.stack([w0, h * state.v, jnp.zeros_like(w0)]),
+                            memory.multipliers)
     w0 = jnp.where(mask > 0, w0, held_increments(model, state, fns.t1))
     # no update carries a rod through another rod: cut back (impacts on obstacles are
     # refused by the contact time, :mod:`.contact_time`)
@@ -166,6 +215,9 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
             fns = step_functions(model, inert, settings.rho_inf, state, h, settings.tangent,
                                  tracked.pairs)
         r, r_z = fns.system_residual(c.w, c.mu)  # once; the branch builds only the matrix
+        now_merit = merit(model, r, r_z)
+        back = ((c.fraction > _MIN_FRACTION) & (now_merit > c.base_merit) if globalized
+                else jnp.array(False))
         # a branch also under vmap (any_lane): lanes that keep their matrix select it back
         factors = jax.lax.cond(
             any_lane(c.fresh),
@@ -205,11 +257,21 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
                                     (c.fresh & off_branch, Status.OFF_BRANCH),
                                     (c.iterations + 1 >= settings.max_iterations,
                                      Status.MAX_ITERATIONS)))
-        return _NewtonCarry(w_new, c.iterations + 1, status, factors, rebuild,
-                            jnp.where(reject, c.previous, full), c.rebuilt | rebuild,
-                            weighted_norm(model, r), mu_new,
-                            jnp.where(reject | ~jnp.isfinite(c.previous), c.theta, theta),
-                            tracked)
+        trial = c.fresh & ~keep
+        half = 0.5 * c.fraction
+        limit = jnp.where(c.iterations + 1 >= settings.max_iterations, Status.MAX_ITERATIONS,
+                          RUNNING)
+        return _NewtonCarry(
+            jnp.where(back, c.base + half * c.step, w_new),
+            c.iterations + 1, jnp.where(back, limit, status), factors, ~back & rebuild,
+            jnp.where(back | reject, c.previous, full), c.rebuilt | (~back & rebuild),
+            weighted_norm(model, r), jnp.where(back, c.base_mu + half * c.step_mu, mu_new),
+            jnp.where(back | reject | ~jnp.isfinite(c.previous), c.theta, theta), tracked,
+            jnp.where(back | ~trial, c.base, c.w), jnp.where(back | ~trial, c.base_mu, c.mu),
+            jnp.where(back | ~trial, c.base_merit, now_merit),
+            jnp.where(back | ~trial, c.step, w_new - c.w),
+            jnp.where(back | ~trial, c.step_mu, mu_new - c.mu),
+            jnp.where(back, half, jnp.where(trial, 1.0, 0.0)))
 
     stale = memory.renew | (jnp.abs(memory.h - h) > 1e-9 * h)
     # drives that turn by pi/2 or more in the step: off the branch before any iteration
@@ -217,7 +279,9 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
                        RUNNING) if model.structure.drive_nodes else RUNNING)
     init = _NewtonCarry(w0, jnp.array(0), jnp.asarray(start), memory.factors, stale,
                         jnp.array(jnp.inf), jnp.array(False), jnp.array(jnp.inf),
-                        memory.multipliers, jnp.array(0.0), tracked if contact else None)
+                        memory.multipliers, jnp.array(0.0), tracked if contact else None,
+                        w0, memory.multipliers, jnp.array(jnp.inf), jnp.zeros_like(w0),
+                        jnp.zeros_like(memory.multipliers), jnp.array(0.0))
     c = iterate(body, init)
     memory = memory._replace(
         factors=c.factors, h=jnp.asarray(h, jnp.float64),

@@ -206,7 +206,8 @@ def driven(model: Model, settings: DynamicSettings, state: State | None = None
                    float(settings.rho_inf), settings.save_every, compiled=PROGRAMS,
                    tolerance=float(settings.tolerance),
                    max_iterations=int(settings.max_iterations), tangent=settings.tangent,
-                   max_halvings=settings.max_halvings, cut=False, state=state)[0]
+                   max_halvings=settings.max_halvings, cut=False, state=state,
+                   globalized=settings.globalized)[0]
 
 
 def _chunked(model: Model, settings: DynamicSettings, state, differentiable: bool,

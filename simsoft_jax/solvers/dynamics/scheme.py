@@ -28,7 +28,11 @@ class DynamicSettings:
     time steps), save_every (keep every k-th state),
     max_halvings (sub-stepping depth before a step is declared failed), tangent
     ("closed_form" or "autodiff": how element blocks of the iteration matrix are built;
-    same matrix, different speed)."""
+    same matrix, different speed), globalized (Newton of each step started from the
+    guess with the smallest residual and kept from overshooting by a backtracking line
+    search on the residual, :func:`~.newton.newton_step`: for slack, nearly
+    inextensible rods; it changes the iterations and sub-steps, not a converged step's
+    solution; False: started from the extrapolated increment, no line search)."""
     dt: float
     steps: int
     rho_inf: float = 0.9
@@ -37,9 +41,13 @@ class DynamicSettings:
     max_iterations: int = 25
     max_halvings: int = 6
     tangent: str = "closed_form"
+    globalized: bool = False
 
     def __post_init__(self):
         check_tangent(self.tangent)
+        if not isinstance(self.globalized, bool):
+            raise ValueError(f"DynamicSettings.globalized: expected True or False, "
+                             f"got {self.globalized!r}")
 
     def replace(self, **changes) -> "DynamicSettings":
         """A copy with some settings changed."""
@@ -48,7 +56,7 @@ class DynamicSettings:
 
 jax.tree_util.register_dataclass(
     DynamicSettings, data_fields=["dt", "rho_inf", "tolerance", "max_iterations"],
-    meta_fields=["steps", "save_every", "max_halvings", "tangent"])
+    meta_fields=["steps", "save_every", "max_halvings", "tangent", "globalized"])
 
 
 class State(NamedTuple):
