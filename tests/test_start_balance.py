@@ -1,5 +1,5 @@
 """Start rotations of rods started from ``initial.points`` alone, relaxed into moment
-balance with the positions held (simsoft_jax.solvers.start_balance, docs/scene-format.md
+balance with the positions held (simsoft_jax.model.start_balance, docs/scene-format.md
 ``initial``).
 
 References, independent of the relaxation:

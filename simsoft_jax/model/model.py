@@ -41,6 +41,7 @@ from ..scene.scene_start import check_start, unheld_rods
 from ..scene.sections import inertia_diagonal, stiffness_diagonal, viscosity_diagonal
 from ..scene.start_frames import chord_started, initial_frames, world_frames
 from ..scene.supports import AXES
+from .start_balance import balanced_rotations
 
 
 class RodInfo(NamedTuple):
@@ -556,7 +557,7 @@ def build_model(scene, device: bool = True) -> Model:
 def _balanced_start(scene, model: Model) -> Model:
     """``model`` with the start rotations of the rods started from points alone
     (:func:`~simsoft_jax.scene.start_frames.chord_started`) in moment balance, positions
-    held (:func:`simsoft_jax.solvers.start_balance.balanced_rotations`; one compile per
+    held (:func:`simsoft_jax.model.start_balance.balanced_rotations`; one compile per
     structure); the chord frames stay, with a warning, where that Newton solve fails.
     Joint nodes keep their chord frames. The relaxed frames are the model's ``R0``, data
     like given ``initial.rotations``: derivatives with respect to the model's arrays hold
@@ -569,7 +570,6 @@ def _balanced_start(scene, model: Model) -> Model:
     if not relaxed.any():
         return model
     from ..solvers import compile_cache   # the solvers import this module
-    from ..solvers.start_balance import balanced_rotations
     compile_cache.enable()
     balance = balanced_rotations(model, relaxed)
     if not bool(balance.converged):

@@ -29,7 +29,7 @@ def initial_frames(rod, R_ref, p_ref):
     reference rotations exactly). Any other count: a polyline, its nodes at the rod's
     node fractions of its arc length. Without ``initial.rotations`` these chord frames
     are out of moment balance; the model puts them in balance with the positions held
-    (:func:`chord_started`, :mod:`simsoft_jax.solvers.start_balance`).
+    (:func:`chord_started`, :mod:`simsoft_jax.model.start_balance`).
     """
     if rod.initial_points is None:
         return R_ref, p_ref
@@ -50,6 +50,6 @@ def chord_started(rod) -> bool:
     """Whether the rod starts from ``initial.points`` without ``initial.rotations``: its
     start rotations are the chord frames of :func:`initial_frames`, which the model
     relaxes into moment balance with the positions held
-    (:mod:`simsoft_jax.solvers.start_balance`)."""
+    (:mod:`simsoft_jax.model.start_balance`)."""
     return (rod.initial_points is not None
             and getattr(rod, "initial_rotations", None) is None)

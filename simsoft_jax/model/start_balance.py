@@ -35,7 +35,7 @@ import numpy as np
 from ..math import lie
 from ..math.linalg import block_solve
 from ..math.xla import jit
-from ..model.loads import loads_at
+from .loads import loads_at
 from ..physics.assembly import apply_constraints, residual_and_tangent
 
 MAX_ITERATIONS = 30
