@@ -148,10 +148,14 @@ def implicit_cotangent(problem, params_of, x, solution, cotangent):
     (a pytree of float arrays) the parameters are made of.
 
     With the free unknowns' cotangent ``c`` (from the transposed ``merge``), the adjoint
-    ``lambda = J^-T c`` is one transposed solve with the factors of the forward solve
-    (``problem.linear_solve`` transposed: ``lax.custom_linear_solve``'s
-    ``transpose_solve``); then ``-lambda . dF/dx`` (one reverse pass of
-    ``problem.residual``), plus the prescribed dofs' part through ``prescribed``."""
+    ``lambda = J^-T c`` is one transposed solve (``problem.system_solve`` transposed:
+    ``lax.custom_linear_solve``'s ``transpose_solve``); then ``-lambda . dF/dx`` (one
+    reverse pass of the residual), plus the prescribed dofs' part through
+    ``prescribed``. The problem gives, besides :func:`implicit`'s methods,
+    ``residual_and_system(params, solution, delta)`` -> ``(residual, system)``: the
+    residual and the iteration matrix from one evaluation (the residual differentiated,
+    the matrix kept: one trace of their shared kinematics, not two), and
+    ``system_solve(params, system, rhs)`` -> ``J^-1 rhs`` with that matrix."""
     params = params_of(x)
     moved, prescribed_vjp = jax.vjp(lambda y: problem.prescribed(params_of(y), solution), x)
     zeros = jax.tree_util.tree_map(jnp.zeros_like, moved)
@@ -160,9 +164,10 @@ def implicit_cotangent(problem, params_of, x, solution, cotangent):
     delta = jax.tree_util.tree_map(lambda d: d * scale, push_vjp(cotangent)[0])
     _, merge_vjp = jax.vjp(lambda f, m: problem.merge(params, solution, f, m), zeros, zeros)
     free, moved_bar = merge_vjp(delta)
-    r, residual_vjp = jax.vjp(lambda y, d: problem.residual(params_of(y), solution, d), x,
-                              zeros)
-    adjoint = jax.linear_transpose(lambda rhs: problem.linear_solve(params, solution, rhs),
+    r, residual_vjp, system = jax.vjp(
+        lambda y, d: problem.residual_and_system(params_of(y), solution, d), x, zeros,
+        has_aux=True)
+    adjoint = jax.linear_transpose(lambda rhs: problem.system_solve(params, system, rhs),
                                    r)(free)[0]
     x_bar, moved_more = residual_vjp(jax.tree_util.tree_map(jnp.negative, adjoint))
     moved_bar = jax.tree_util.tree_map(jnp.add, moved_bar, moved_more)

@@ -325,9 +325,25 @@ class StepProblem:
             solution[0] + delta[0], solution[1] + delta[1])
 
     def linear_solve(self, params, solution, rhs):
+        return self.system_solve(params, self.residual_and_system(params, solution,
+                                                                  (0.0, 0.0))[1], rhs)
+
+    def residual_and_system(self, params, solution, delta):
+        """``((r, r_z), system)``: :meth:`residual` and the bordered iteration matrix
+        (:class:`~simsoft_jax.couplings.mechanisms.Coupled`) at the solution moved by
+        ``delta``, from one evaluation of the element blocks (the matrix's kinematics are
+        the residual's): the reverse mode differentiates the residual and keeps the
+        matrix (:func:`simsoft_jax.solvers.newton.implicit_cotangent`)."""
         model, inert, settings, state, h = params
         system = step_functions(model, inert, settings.rho_inf, state, h,
-                                settings.tangent).system(*solution)
+                                settings.tangent).system(solution[0] + delta[0],
+                                                         solution[1] + delta[1])
+        return (system.r, system.r_z), system
+
+    def system_solve(self, params, system, rhs):
+        """``J^-1 rhs`` on the free unknowns, ``J`` the ``system`` of
+        :meth:`residual_and_system`, split into increments and multipliers."""
+        model = params[0]
         x, z = implicit_solve_coupled(system.blocks, system.B, system.C, system.D, *rhs,
                                       model.structure.identity_nodes())
         return coupling.split(model.structure, x, z)
