@@ -32,7 +32,11 @@ class DynamicSettings:
     guess with the smallest residual and kept from overshooting by a backtracking line
     search on the residual, :func:`~.newton.newton_step`: for slack, nearly
     inextensible rods; it changes the iterations and sub-steps, not a converged step's
-    solution; False: started from the extrapolated increment, no line search)."""
+    solution; False: started from the extrapolated increment, no line search). Use it
+    with damping (``rho_inf`` <= 0.5, or mass or contact damping): whole steps of an
+    undamped slack rope at ``rho_inf = 0.9`` can gain energy (the crossing ropes of
+    cosseratbench at 50 ms, benchmarks/README.md "Newton on slack ropes"), where the
+    sub-steps of the default start happen to keep them bounded."""
     dt: float
     steps: int
     rho_inf: float = 0.9
