@@ -9,9 +9,10 @@ cells. Each cell is hashed to one integer; the elements are sorted by it, and ev
 element looks up the (at most ``CELL_CAPACITY``) elements of each of its 27
 neighbouring cells. A chain that is not folded puts a few elements in a cell, so the
 work is O(E) sphere tests beyond the sort; the finer test runs on the pairs of
-overlapping spheres alone (up to ``NEAR_TESTS`` per element, else on every slot). Kept pairs: ``e < f``, spheres overlapping, passing a
-finer test given by the caller (the element chords close enough), and not excluded as neighbours (same rod and an arclength gap between them below
-``exclusion``; elements sharing a node have gap 0, so they are always excluded).
+overlapping spheres alone (up to ``NEAR_TESTS`` per element, else on every slot). Kept
+pairs: ``e < f``, spheres overlapping, passing a finer test given by the caller (the
+element chords close enough), and not excluded as neighbours (same rod and an arclength
+gap between them below ``exclusion``; elements sharing a node have gap 0, so they are always excluded).
 
 The narrow phase gets a fixed number ``capacity`` of pairs (``[contact] max_pairs``);
 ``overflow`` is True when more pairs (or a crowded cell) were found than fit: the
