@@ -361,3 +361,31 @@ def test_positive_definite_matches_numpy_eigenvalues(n):
         # the same test read from the factorization a solve does (symmetric chains)
         assert not bool(linalg.pivots_positive_definite(
             linalg.factorize((shifted, upper, lower))))
+
+
+@pytest.mark.parametrize("coupled", [5, 40, 70, 200])
+def test_border_unknowns_that_couple_to_nothing_are_left_out_exactly(coupled):
+    """A border of 200 unknowns of which only ``coupled`` (scattered, not the first)
+    have columns of B, rows of C and off-diagonal entries of D; the others only D's
+    diagonal (2.5): the factorization solves for the smallest of the border sizes that
+    holds the coupled ones, and the solve and transposed solve match the dense NumPy
+    solve of the whole assembled matrix, the decoupled unknowns y_j = c_j / 2.5."""
+    rng = np.random.default_rng(coupled)
+    n, m = 30, 200
+    assert linalg.border_sizes(m) == (200, 100, 50)
+    blocks = random_blocks(n, rng)
+    on = np.zeros(m, bool)
+    on[rng.choice(m, coupled, replace=False)] = True
+    B = rng.normal(size=(n, 6, m)) * on
+    C = rng.normal(size=(m, n, 6)) * on[:, None, None]
+    D = np.where(np.outer(on, on), rng.normal(size=(m, m)), 0.0) + np.diag(
+        np.where(on, -8.0, 2.5))
+    A = np.block([[np.asarray(linalg.dense(blocks)), B.reshape(6 * n, m)],
+                  [C.reshape(m, 6 * n), D]])
+    b, c = rng.normal(size=(n, 6)), rng.normal(size=m)
+    factors = jax.jit(linalg.factorize_coupled)(blocks, B, C, D)
+    for transpose in (False, True):
+        x, y = linalg.solve_coupled(factors, jnp.asarray(b), jnp.asarray(c), transpose)
+        ref = np.linalg.solve(A.T if transpose else A, np.concatenate([b.ravel(), c]))
+        assert rel_err(np.concatenate([np.ravel(x), y]), ref) < 1e-11
+        np.testing.assert_allclose(np.asarray(y)[~on], c[~on] / 2.5, rtol=1e-12)

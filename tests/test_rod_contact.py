@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
-from simsoft_jax.couplings import rod_pairs
+from simsoft_jax.couplings import broad_phase, rod_pairs
 from simsoft_jax.solvers import statics
 from simsoft_jax.model.model import build_model
 from simsoft_jax.pipeline.results import Result
@@ -322,3 +322,30 @@ def test_coil_with_overlapping_turns_opens_until_its_turns_just_touch():
     assert np.all(separation <= 2 * r)
     np.testing.assert_allclose(rods["force"], 0.0, atol=1e-9 * float(rods["normal_force"]))
     assert result.stability == {"negative_eigenvalues": 0, "stable": True}   # a stable coil
+
+
+@pytest.mark.parametrize("near_tests", [broad_phase.NEAR_TESTS, 1])
+def test_broad_phase_candidates_match_brute_force_whether_or_not_the_finer_tests_fit(
+        near_tests, monkeypatch):
+    """40 elements of two rods with random spheres in a small box (many overlaps): the
+    candidates are exactly the brute-force pairs e < f with overlapping spheres, passing
+    the finer test (here: e + f not a multiple of 3) and not neighbours on one rod, both
+    when the finer test runs on the overlapping pairs alone and (NEAR_TESTS = 1: more
+    overlapping pairs than it allows) on every slot."""
+    monkeypatch.setattr(broad_phase, "NEAR_TESTS", near_tests)
+    rng = np.random.default_rng(3)
+    n = 40
+    centre, radius = rng.uniform(0.0, 0.1, (n, 3)), rng.uniform(0.01, 0.02, n)
+    rod_of = np.repeat([0, 1], n // 2)
+    s0 = np.tile(np.arange(n // 2) * 0.01, 2)
+    e, f, active, overflow = jax.jit(
+        lambda c, r: broad_phase.candidate_pairs(
+            c, r, lambda e, f: (e + f) % 3 != 0, rod_of, jnp.asarray(s0),
+            jnp.asarray(s0 + 0.01), 0.015, 400))(jnp.asarray(centre), jnp.asarray(radius))
+    assert not overflow
+    found = {(int(a), int(b)) for a, b, on in zip(e, f, active) if on}
+    expected = {(a, b) for a in range(n) for b in range(a + 1, n)
+                if np.sum((centre[a] - centre[b]) ** 2) < (radius[a] + radius[b]) ** 2
+                and (a + b) % 3 != 0
+                and not (rod_of[a] == rod_of[b] and s0[b] - s0[a] - 0.01 < 0.015)}
+    assert found == expected and len(found) > n // 2

@@ -91,3 +91,19 @@ def test_rod_contact_forces_are_equal_and_opposite_at_every_time(collision):
     np.testing.assert_allclose(entry["normal_force"], np.linalg.norm(top, axis=1), rtol=1e-4,
                                atol=1e-9 * scale)
     assert top[:, 2].max() == pytest.approx(scale)       # the bottom rod pushes the top up
+
+
+def test_more_pairs_than_max_pairs_end_the_run_with_a_status_naming_it():
+    """The crossing rods start within contact reach of each other at their middle nodes,
+    where the two elements of one rod meeting there face the two of the other: 4 element
+    pairs. With ``max_pairs = 1`` the run stops at its first step with the status
+    ``contact_pairs`` (as the cause of the step halved below its minimum) and a message
+    naming ``[contact] max_pairs``; the states kept are finite."""
+    scene = {**SCENE, "solver": {**SCENE["solver"], "t_end": 0.02},
+             "contact": {**SCENE["contact"], "max_pairs": 1}}
+    result = sj.run(scene)
+    assert not result.converged
+    assert sj.Status.CONTACT_PAIRS in (sj.Status(int(result.raw.status)),
+                                       sj.Status(int(result.raw.cause)))
+    assert "[contact] max_pairs" in result.message
+    assert np.all(np.isfinite(result._p))

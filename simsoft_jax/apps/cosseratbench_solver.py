@@ -58,7 +58,7 @@ and solved through the public API:
   ``HEAP_SINK`` = 1 % of its radius under its own weight, ``k = rhoA |g| / (0.01 r)``
   (7.7e3 N/m^2 on the pile, against the default ``1000 EI / h^4`` = 6.1e5 for its soft
   rope), and the narrow phase holds ``HEAP_PAIRS`` = 32 element pairs per rod (the
-  default 8 overflow as the rope heaps, which fails the step). The stick-slip friction's
+  default 8 overflow as the rope heaps: status contact_pairs). The stick-slip friction's
   tangential stiffness is the penalty's, so its sticking range ``mu f_n / k`` grows
   with it: with the default the range was 0.1 micrometre and Newton cycled between the
   stations' sliding directions (steps at the iteration limit); the contact time

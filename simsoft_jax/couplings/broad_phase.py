@@ -8,9 +8,11 @@ the largest sphere diameter, so two overlapping spheres sit in the same or neigh
 cells. Each cell is hashed to one integer; the elements are sorted by it, and every
 element looks up the (at most ``CELL_CAPACITY``) elements of each of its 27
 neighbouring cells. A chain that is not folded puts a few elements in a cell, so the
-work is O(E) sphere tests beyond the sort. Kept pairs: ``e < f``, spheres overlapping, passing a
-finer test given by the caller (the element chords close enough), and not excluded as neighbours (same rod and an arclength gap between them below
-``exclusion``; elements sharing a node have gap 0, so they are always excluded).
+work is O(E) sphere tests beyond the sort; the finer test runs on the pairs of
+overlapping spheres alone (up to ``NEAR_TESTS`` per element, else on every slot). Kept
+pairs: ``e < f``, spheres overlapping, passing a finer test given by the caller (the
+element chords close enough), and not excluded as neighbours (same rod and an arclength
+gap between them below ``exclusion``; elements sharing a node have gap 0, so they are always excluded).
 
 The narrow phase gets a fixed number ``capacity`` of pairs (``[contact] max_pairs``);
 ``overflow`` is True when more pairs (or a crowded cell) were found than fit: the
@@ -21,10 +23,12 @@ from __future__ import annotations
 
 import itertools
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 CELL_CAPACITY = 16     # elements looked at per neighbouring cell
+NEAR_TESTS = 8         # pairs of overlapping spheres per element given the finer test at once
 _OFFSETS = np.array(list(itertools.product((-1, 0, 1), repeat=3)))
 _PRIMES = (73856093, 19349663, 83492791)
 
@@ -77,10 +81,20 @@ def candidate_pairs(centre, radius, near_pair, rod_of, s_start, s_end, exclusion
         neighbours = neighbours | jnp.any((a[e] + b[f] < exclusion)
                                           | (b[e] + a[f] < exclusion), axis=-1)
     overlap = jnp.sum((centre[e] - centre[f]) ** 2, -1) < (radius[e] + radius[f]) ** 2
-    keep = (inside & (f > e) & overlap & ~neighbours & near_pair(e, f)).reshape(-1)
+    spheres = (inside & (f > e) & overlap & ~neighbours).reshape(-1)
+    e, f = e.reshape(-1), f.reshape(-1)
+    bound = NEAR_TESTS * n
+
+    def few():   # the finer test on the (at most ``bound``) pairs of overlapping spheres
+        index = jnp.nonzero(spheres, size=bound, fill_value=0)[0]
+        near = near_pair(e[index], f[index]) & (jnp.arange(bound) < jnp.sum(spheres))
+        return jnp.zeros_like(spheres).at[index].max(near)
+
+    keep = jax.lax.cond(jnp.sum(spheres) <= bound, few,
+                        lambda: spheres & near_pair(e, f))
     count = jnp.sum(keep)
     index = jnp.nonzero(keep, size=capacity, fill_value=0)[0]
     active = jnp.arange(capacity) < count
-    e = jnp.where(active, e.reshape(-1)[index], 0)
-    f = jnp.where(active, f.reshape(-1)[index], 0)
+    e = jnp.where(active, e[index], 0)
+    f = jnp.where(active, f[index], 0)
     return e, f, active, crowded | (count > capacity)

@@ -14,8 +14,9 @@ cross blocks ``K_ef``, ``K_fe`` between those nodes. With ``y = W U^T x`` the Ne
 solved by :func:`simsoft_jax.math.linalg.solve_coupled` (block cyclic reduction on the chains, a dense
 Schur complement of size 6n): an exact Newton step, and the exact implicit derivative
 (:mod:`simsoft_jax.solvers.statics`). ``P = [contact] max_pairs`` and the node capacity
-``2 P + 2`` (:func:`coupled_nodes`) are static; more candidate pairs or nodes than that
-make the residual NaN (the solve fails, status NONFINITE, never a wrong convergence).
+``2 P + 2`` (:func:`coupled_nodes`) are static; more candidate pairs or touching nodes
+than that make the residual NaN (:func:`overflows`; a dynamic step fails with the status
+CONTACT_PAIRS naming ``max_pairs``, never a wrong convergence).
 """
 from __future__ import annotations
 
@@ -202,6 +203,44 @@ def _scatter(n_nodes, nodes, g):
     return jnp.zeros((n_nodes, 6), g.dtype).at[nodes.reshape(-1)].add(g.reshape(-1, 6))
 
 
+def _tangent_sizes(capacity: int) -> tuple:
+    """The numbers of pair tangents (static, decreasing from ``capacity``)
+    :func:`_residuals_and_tangents` chooses from: halved while above 4, at most four."""
+    sizes = [capacity]
+    while sizes[-1] > 4 and len(sizes) < 4:
+        sizes.append(-(-sizes[-1] // 2))
+    return tuple(sizes)
+
+
+def _residuals_and_tangents(args, active, m: int):
+    """Residuals (P,24) and tangents (P,24,24) of the pairs ``args``
+    (:func:`_pair_args`), zero where not ``active``. A tangent (24 derivatives of the
+    residual, ~30 times its cost) is formed only for the pairs with a nonzero residual,
+    moved to the front: the smallest of :func:`_tangent_sizes` that holds them
+    (``lax.switch``); a pair whose residual is zero is out of reach (its penalty and
+    weights are C2 and vanish there with their derivatives), so its tangent is zero."""
+    g = jax.vmap(lambda *a: rod_contact.pair_residual(*a, m))(*args) * active[:, None]
+    touching = active & jnp.any(g != 0, axis=1)
+    order = jnp.argsort(~touching, stable=True)
+    sizes = _tangent_sizes(active.shape[0])
+
+    def tangents(count):
+        def branch():
+            first = order[:count] if count < active.shape[0] else slice(None)
+            k = jax.vmap(lambda *a: rod_contact.pair_residual_and_tangent(*a, m)[1])(
+                *jax.tree_util.tree_map(lambda x: x[first], args))
+            k = k * touching[first][:, None, None]
+            if count == active.shape[0]:
+                return k
+            return jnp.zeros((active.shape[0],) + k.shape[1:], k.dtype).at[first].set(k)
+        return branch
+
+    if len(sizes) == 1:
+        return g, tangents(sizes[0])()
+    which = jnp.sum(jnp.asarray(sizes) >= jnp.sum(touching)) - 1
+    return g, jax.lax.switch(which, [tangents(c) for c in sizes])
+
+
 class Coupling(NamedTuple):
     """The bordered terms of :func:`system`: B = U (N,6,6n), C = W U^T (6n,N,6),
     D = -I (6n,6n), n = :func:`coupled_nodes`."""
@@ -223,14 +262,11 @@ def system(model, R, p, r, blocks, T=None, slide=None, pairs=None):
     s = model.structure
     pairs = find_pairs(model, R, p) if pairs is None else pairs
     m = s.contact_points
-    g, k = jax.vmap(lambda *a: rod_contact.pair_residual_and_tangent(*a, m))(
-        *_pair_args(model, R, p, pairs))
+    g, k = _residuals_and_tangents(_pair_args(model, R, p, pairs), pairs.active, m)
     if T is not None:
         P = k.shape[0]
         k = jnp.einsum("pqnj,pnjk->pqnk", k.reshape(P, 24, 4, 6),
                        T[pairs.nodes]).reshape(P, 24, 24)
-    on = pairs.active.astype(p.dtype)
-    g, k = g * on[:, None], k * on[:, None, None]
     # blocks inside e and inside f join chain neighbours: into the chains
     per_element = jnp.zeros((s.n_elements, 12, 12), p.dtype).at[pairs.e].add(
         k[:, :12, :12]).at[pairs.f].add(k[:, 12:, 12:])
@@ -242,11 +278,7 @@ def system(model, R, p, r, blocks, T=None, slide=None, pairs=None):
     # cross blocks (e's nodes with f's): W on the distinct nodes of the pairs, U their
     # unit columns
     n, cap = s.n_nodes, coupled_nodes(s)
-    listed = jnp.where(pairs.active[:, None], pairs.nodes, n)
-    distinct = jnp.unique(listed, size=listed.size, fill_value=n)
-    uniq = distinct[:cap] if distinct.size >= cap else jnp.concatenate(
-        [distinct, jnp.full(cap - distinct.size, n)])
-    crowded = jnp.sum(distinct < n) > cap
+    uniq, crowded = _border_nodes(s, pairs, k)
     slot = jnp.searchsorted(uniq, pairs.nodes)                               # (P, 4)
     rows = (6 * slot[:, :, None] + jnp.arange(6)).reshape(-1, 24)            # (P, 24)
     W = jnp.zeros((6 * cap, 6 * cap), p.dtype)
@@ -261,6 +293,32 @@ def system(model, R, p, r, blocks, T=None, slide=None, pairs=None):
     U, C = restrict_border(s, slide, U, C)
     r = jnp.where(crowded, jnp.nan, r)
     return r, blocks, Coupling(U, C, -jnp.eye(6 * cap, dtype=p.dtype))
+
+
+def _border_nodes(structure, pairs: Pairs, k):
+    """The distinct nodes (cap,) of the pairs that touch, increasing, padded with
+    ``n_nodes``, and whether there are more than ``cap = coupled_nodes``; ``k`` (P,24,24)
+    the pairs' tangents. Only pairs with nonzero cross blocks take border nodes: a
+    candidate farther apart couples nothing (and the factorization leaves the unused node
+    slots out, :func:`simsoft_jax.math.linalg.factorize_coupled`)."""
+    n, cap = structure.n_nodes, coupled_nodes(structure)
+    touching = (jnp.any(k[:, :12, 12:] != 0, axis=(1, 2))
+                | jnp.any(k[:, 12:, :12] != 0, axis=(1, 2))) & pairs.active
+    listed = jnp.where(touching[:, None], pairs.nodes, n)
+    distinct = jnp.unique(listed, size=listed.size, fill_value=n)
+    uniq = distinct[:cap] if distinct.size >= cap else jnp.concatenate(
+        [distinct, jnp.full(cap - distinct.size, n)])
+    return uniq, jnp.sum(distinct < n) > cap
+
+
+def overflows(model, R, p):
+    """Whether the rod-rod contact at frames R (N,3,3), p (N,3) holds more candidate
+    pairs than ``[contact] max_pairs``, or its touching pairs more nodes than
+    :func:`coupled_nodes` (() bool): where :func:`residual` and :func:`system` are NaN."""
+    pairs = find_pairs(model, R, p)
+    _, k = jax.vmap(lambda *a: rod_contact.pair_residual_and_tangent(
+        *a, model.structure.contact_points))(*_pair_args(model, R, p, pairs))
+    return pairs.overflow | _border_nodes(model.structure, pairs, k)[1]
 
 
 def coupled_nodes(structure) -> int:

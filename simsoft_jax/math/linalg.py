@@ -405,20 +405,33 @@ def implicit_solve(blocks, b, identity: tuple = ()):
 
 
 @functools.partial(jax.tree_util.register_dataclass,
-                   data_fields=("chain", "B", "C", "KinvB", "schur_lu", "schur_perm"),
+                   data_fields=("chain", "B", "C", "KinvB", "schur_lu", "schur_perm",
+                                "order"),
                    meta_fields=())
 @dataclasses.dataclass(frozen=True)
 class CoupledFactors:
     """Factors of ``[[K, B], [C, D]]`` (:func:`factorize_coupled`), a pytree: ``chain`` the
     :class:`Factors` of ``K``; ``B`` (N,6,m) and ``C`` (m,N,6) the couplings; ``KinvB``
     (N,6,m) ``= K^-1 B``; ``schur_lu`` (m,m) and ``schur_perm`` (m,) the :func:`lu` of the
-    Schur complement ``S = D - C K^-1 B``; the last three are None when m = 0."""
+    Schur complement in the order ``order`` (m,) of the border unknowns, ``S[order][:,
+    order]`` with ``S = D - C K^-1 B`` (the unknowns that couple first,
+    :func:`factorize_coupled`); the last four are None when m = 0."""
     chain: Factors
     B: jax.Array
     C: jax.Array
     KinvB: jax.Array | None
     schur_lu: jax.Array | None
     schur_perm: jax.Array | None
+    order: jax.Array | None
+
+
+def border_sizes(m: int) -> tuple:
+    """The border sizes (static, decreasing from m) :func:`factorize_coupled` chooses
+    from: m halved while above ``2 TRIANGULAR_COLUMNS``."""
+    sizes = [m]
+    while sizes[-1] > 2 * TRIANGULAR_COLUMNS:
+        sizes.append(-(-sizes[-1] // 2))
+    return tuple(sizes)
 
 
 def factorize_coupled(blocks, B, C, D, identity: tuple = ()) -> CoupledFactors:
@@ -426,13 +439,47 @@ def factorize_coupled(blocks, B, C, D, identity: tuple = ()) -> CoupledFactors:
     once (:func:`factorize`, also for ``identity``), ``K^-1 B`` for the m columns of B
     (N,6,m), and the dense LU of the Schur complement ``S = D - C K^-1 B`` (m,m); C
     (m,N,6), D (m,m). O(N m) + O(m^3). Needs ``K`` and ``S`` nonsingular (``D = 0`` is
-    fine: constraints ``C = B^T``). For m = 0 (static) only ``K`` is factorized."""
+    fine: constraints ``C = B^T``). For m = 0 (static) only ``K`` is factorized.
+
+    Border unknowns that couple to nothing (their column of B, row of C and off-diagonal
+    row and column of D exactly zero: e.g. the unused node slots of rod-rod contact) have
+    ``K^-1 B = 0`` there and ``S``'s row and column equal to D's: they are ordered last,
+    and only the smallest of :func:`border_sizes` that holds the others is solved for
+    (``lax.switch``; the rest of the factor is D's diagonal), O(N k) + O(k^3) for k of
+    them. Exact (the same operations on the coupled unknowns)."""
     chain = factorize(blocks, identity)
     m = B.shape[-1]
     if m == 0:
-        return CoupledFactors(chain, B, C, None, None, None)
-    KinvB = solve_factored(chain, B)
-    return CoupledFactors(chain, B, C, KinvB, *lu(D - jnp.einsum("anj,njb->ab", C, KinvB)))
+        return CoupledFactors(chain, B, C, None, None, None, None)
+    off = D - jnp.diag(jnp.diag(D))
+    coupled = (jnp.any(B != 0, axis=(0, 1)) | jnp.any(C != 0, axis=(1, 2))
+               | jnp.any(off != 0, axis=0) | jnp.any(off != 0, axis=1))
+    order = jnp.argsort(~coupled, stable=True).astype(jnp.int32)
+    sizes = border_sizes(m)
+
+    def solved(k):
+        def branch():
+            first = order[:k]
+            KinvB = solve_factored(chain, B[..., first])
+            S = D[first][:, first] - jnp.einsum("anj,njb->ab", C[first], KinvB)
+            f_t, perm = lu(S)
+            if k == m:
+                return KinvB, f_t, perm
+            return (jnp.concatenate([KinvB, jnp.zeros(KinvB.shape[:2] + (m - k,),
+                                                      KinvB.dtype)], axis=-1),
+                    jnp.zeros((m, m), S.dtype).at[:k, :k].set(f_t)
+                    .at[np.arange(k, m), np.arange(k, m)].set(jnp.diag(D)[order[k:]]),
+                    jnp.concatenate([perm, jnp.arange(k, m, dtype=perm.dtype)]))
+        return branch
+
+    if len(sizes) == 1:
+        KinvB_o, f_t, perm = solved(m)()
+    else:
+        # the smallest size holding every coupled unknown: sizes decrease
+        which = jnp.sum(jnp.asarray(sizes) >= jnp.sum(coupled)) - 1
+        KinvB_o, f_t, perm = jax.lax.switch(which, [solved(k) for k in sizes])
+    KinvB = KinvB_o[..., jnp.argsort(order)]     # back to the unknowns' own order
+    return CoupledFactors(chain, B, C, KinvB, f_t, perm, order)
 
 
 def solve_coupled(factors: CoupledFactors, b, c, transpose=False):
@@ -442,18 +489,24 @@ def solve_coupled(factors: CoupledFactors, b, c, transpose=False):
 
     ``y = S^-1 (c - C K^-1 b)``, ``x = K^-1 b - (K^-1 B) y``: one chain solve and O(N m).
     Transposed: ``y = S^-T (c - B^T K^-T b)``, ``x = K^-T (b - C^T y)``: two transposed
-    chain solves. For m = 0 this is :func:`solve_factored` and ``y = c``.
+    chain solves. For m = 0 this is :func:`solve_factored` and ``y = c``. ``S`` is
+    factorized in the order ``factors.order``: ``y[order]`` solves with ``S[order][:,
+    order]`` and the right-hand side's ``[order]``.
     """
     chain = factors.chain
     x0 = solve_factored(chain, b, transpose)
     if factors.B.shape[-1] == 0:
         return x0, c
-    schur = (factors.schur_lu, factors.schur_perm)
+    schur, order = (factors.schur_lu, factors.schur_perm), factors.order
+
+    def schur_solve(rhs, transpose):
+        return jnp.zeros_like(rhs).at[order].set(lu_solve(schur, rhs[order], transpose))
+
     if transpose:
-        y = lu_solve(schur, c - jnp.einsum("nja,nj->a", factors.B, x0), transpose=True)
+        y = schur_solve(c - jnp.einsum("nja,nj->a", factors.B, x0), True)
         return solve_factored(chain, b - jnp.einsum("anj,a->nj", factors.C, y),
                               transpose=True), y
-    y = lu_solve(schur, c - jnp.einsum("anj,nj->a", factors.C, x0))
+    y = schur_solve(c - jnp.einsum("anj,nj->a", factors.C, x0), False)
     return x0 - jnp.einsum("nja,a->nj", factors.KinvB, y), y
 
 

@@ -29,6 +29,7 @@ class Status(enum.IntEnum):
     CONTACT_UNRESOLVED = 8  # a dynamic step hit an obstacle in less than a few steps' time
     UNRESTRAINED = 9     # a static solve at full load kept moving along a motion that the
     #                      supports leave free and nothing else restrains
+    CONTACT_PAIRS = 10   # more rod-rod element pairs in contact reach than max_pairs holds
 
     @property
     def code(self) -> str:
@@ -52,6 +53,9 @@ _REASONS = {
     Status.UNRESTRAINED: "at the full loads the rods kept moving along a motion their "
                          "supports leave free, which contact, friction and the loads do "
                          "not restrain",
+    Status.CONTACT_PAIRS: "more rod-rod element pairs came within contact reach (or touched "
+                          "more nodes) than the narrow phase holds: raise [contact] "
+                          "max_pairs",
     Status.INTERRUPTED: "interrupted (KeyboardInterrupt, Ctrl-C); the states computed "
                         "before are kept",
 }

@@ -392,6 +392,11 @@ def attempt(model, inert, settings, state, h, memory) -> Attempt:
     # a converged step that an impact makes too long is refused (.contact_time)
     status = jnp.where((res.status == Status.CONVERGED) & unresolved(m, st, state1, hh),
                        Status.CONTACT_UNRESOLVED, res.status)
+    if m.structure.self_contact:   # a non-finite residual from too many rod-rod pairs
+        status = jax.lax.cond(status == Status.NONFINITE,
+                              lambda: jnp.where(rod_pairs.overflows(m, state1.R, state1.p),
+                                                Status.CONTACT_PAIRS, status),
+                              lambda: status)
     memory = remember_step(res.memory, st.vd, hh, status == Status.CONVERGED)
     return Attempt(state1, res.iterations, status, res.residual, memory, res.w,
                    res.memory.multipliers)
