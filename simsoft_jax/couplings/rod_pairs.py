@@ -205,9 +205,10 @@ def _scatter(n_nodes, nodes, g):
 
 def _tangent_sizes(capacity: int) -> tuple:
     """The numbers of pair tangents (static, decreasing from ``capacity``)
-    :func:`_residuals_and_tangents` chooses from: halved while above 4, at most four."""
+    :func:`_residuals_and_tangents` chooses from: halved while above 8, at most three
+    (each is a branch XLA compiles: the default 8 pairs keep one)."""
     sizes = [capacity]
-    while sizes[-1] > 4 and len(sizes) < 4:
+    while sizes[-1] > 8 and len(sizes) < 3:
         sizes.append(-(-sizes[-1] // 2))
     return tuple(sizes)
 

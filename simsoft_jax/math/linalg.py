@@ -427,9 +427,10 @@ class CoupledFactors:
 
 def border_sizes(m: int) -> tuple:
     """The border sizes (static, decreasing from m) :func:`factorize_coupled` chooses
-    from: m halved while above ``2 TRIANGULAR_COLUMNS``."""
+    from: m halved while above ``4 TRIANGULAR_COLUMNS`` (each size is a branch XLA
+    compiles: a border of the default 8 rod-rod pairs, 108 unknowns, keeps one)."""
     sizes = [m]
-    while sizes[-1] > 2 * TRIANGULAR_COLUMNS:
+    while sizes[-1] > 4 * TRIANGULAR_COLUMNS:
         sizes.append(-(-sizes[-1] // 2))
     return tuple(sizes)
 

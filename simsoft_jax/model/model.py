@@ -558,7 +558,7 @@ def _balanced_start(scene, model: Model) -> Model:
     """``model`` with the start rotations of the rods started from points alone
     (:func:`~simsoft_jax.scene.start_frames.chord_started`) in moment balance, positions
     held (:func:`simsoft_jax.model.start_balance.balanced_rotations`; one compile per
-    structure); the chord frames stay, with a warning, where that Newton solve fails.
+    structure, kept by the persistent cache once a solve has enabled it); the chord frames stay, with a warning, where that Newton solve fails.
     Joint nodes keep their chord frames. The relaxed frames are the model's ``R0``, data
     like given ``initial.rotations``: derivatives with respect to the model's arrays hold
     them fixed."""
@@ -569,8 +569,6 @@ def _balanced_start(scene, model: Model) -> Model:
     relaxed[list(s.coupling_nodes)] = False
     if not relaxed.any():
         return model
-    from ..solvers import compile_cache   # the solvers import this module
-    compile_cache.enable()
     balance = balanced_rotations(model, relaxed)
     if not bool(balance.converged):
         warnings.warn("initial: the start rotations of the rods started from points alone "
