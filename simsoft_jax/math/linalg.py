@@ -415,7 +415,8 @@ class CoupledFactors:
     (N,6,m) ``= K^-1 B``; ``schur_lu`` (m,m) and ``schur_perm`` (m,) the :func:`lu` of the
     Schur complement in the order ``order`` (m,) of the border unknowns, ``S[order][:,
     order]`` with ``S = D - C K^-1 B`` (the unknowns that couple first,
-    :func:`factorize_coupled`); the last four are None when m = 0."""
+    :func:`factorize_coupled`; None: the unknowns' own order, a border of one size); the
+    last four are None when m = 0."""
     chain: Factors
     B: jax.Array
     C: jax.Array
@@ -452,11 +453,15 @@ def factorize_coupled(blocks, B, C, D, identity: tuple = ()) -> CoupledFactors:
     m = B.shape[-1]
     if m == 0:
         return CoupledFactors(chain, B, C, None, None, None, None)
+    sizes = border_sizes(m)
+    if len(sizes) == 1:     # one size: the whole border, in its own order
+        KinvB = solve_factored(chain, B)
+        return CoupledFactors(chain, B, C, KinvB,
+                              *lu(D - jnp.einsum("anj,njb->ab", C, KinvB)), None)
     off = D - jnp.diag(jnp.diag(D))
     coupled = (jnp.any(B != 0, axis=(0, 1)) | jnp.any(C != 0, axis=(1, 2))
                | jnp.any(off != 0, axis=0) | jnp.any(off != 0, axis=1))
     order = jnp.argsort(~coupled, stable=True).astype(jnp.int32)
-    sizes = border_sizes(m)
 
     def solved(k):
         def branch():
@@ -473,12 +478,9 @@ def factorize_coupled(blocks, B, C, D, identity: tuple = ()) -> CoupledFactors:
                     jnp.concatenate([perm, jnp.arange(k, m, dtype=perm.dtype)]))
         return branch
 
-    if len(sizes) == 1:
-        KinvB_o, f_t, perm = solved(m)()
-    else:
-        # the smallest size holding every coupled unknown: sizes decrease
-        which = jnp.sum(jnp.asarray(sizes) >= jnp.sum(coupled)) - 1
-        KinvB_o, f_t, perm = jax.lax.switch(which, [solved(k) for k in sizes])
+    # the smallest size holding every coupled unknown: sizes decrease
+    which = jnp.sum(jnp.asarray(sizes) >= jnp.sum(coupled)) - 1
+    KinvB_o, f_t, perm = jax.lax.switch(which, [solved(k) for k in sizes])
     KinvB = KinvB_o[..., jnp.argsort(order)]     # back to the unknowns' own order
     return CoupledFactors(chain, B, C, KinvB, f_t, perm, order)
 
@@ -501,6 +503,8 @@ def solve_coupled(factors: CoupledFactors, b, c, transpose=False):
     schur, order = (factors.schur_lu, factors.schur_perm), factors.order
 
     def schur_solve(rhs, transpose):
+        if order is None:
+            return lu_solve(schur, rhs, transpose)
         return jnp.zeros_like(rhs).at[order].set(lu_solve(schur, rhs[order], transpose))
 
     if transpose:
