@@ -53,6 +53,14 @@ _PAIR_MOTION_FLOOR = 0.1
 # iterate it leads to exceeds the merit where it started and the fraction of it applied
 # is above this (1, 1/2, ..., 1/16; the last is kept whatever its merit).
 _MIN_FRACTION = 0.1
+# Stick-slip friction: a step whose fresh corrections had to be halved this many times
+# (newton_step) is cycling between sliding directions and ends as at the iteration
+# limit, to be sub-stepped, unless it is already the shortest sub-step. Measured on
+# cosseratbench's pile (200 steps of 22 ms, docs/cosseratbench.md): 84 of its 86 steps
+# that ran to the 25-iteration limit had halved 3 times or more, at 2-4 % of the
+# residual they started from; of the 337 that converged, 13 had halved 3 times, 5 had
+# 4 times, 0 had 6 times.
+_CYCLE_HALVINGS = 4
 
 
 def least_residual(model, fns, guesses, mu):
@@ -90,7 +98,8 @@ class _NewtonCarry(NamedTuple):
     None without rod contact); for the line search (``settings.globalized``) the iterate
     and multipliers the last fresh correction started from (base, base_mu), its merit
     there (base_merit), that correction (step (N,6), step_mu (M,)) and the fraction of
-    it applied (0: no correction on trial)."""
+    it applied (0: no correction on trial); halvings: the fresh corrections halved so far
+    (stick-slip friction)."""
     w: jax.Array
     iterations: jax.Array
     status: jax.Array
@@ -108,6 +117,7 @@ class _NewtonCarry(NamedTuple):
     step: jax.Array = None
     step_mu: jax.Array = None
     fraction: jax.Array = None
+    halvings: jax.Array = None
 
 
 class StepResult(NamedTuple):
@@ -147,9 +157,12 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     resolved; :func:`advance` sub-steps it; also, before any iteration, when a drive
     turns by pi/2 or more in the step, :func:`~simsoft_jax.couplings.drives.drive_turn`), or at
     ``max_iterations``
-    (MAX_ITERATIONS). With ``settings.globalized``, a backtracking line search: when the
-    iterate a fresh (exact Newton) correction led to has a larger :func:`merit` than
-    the iterate it started from, the correction is halved from there (the matrix kept),
+    (MAX_ITERATIONS; with stick-slip friction also at the ``_CYCLE_HALVINGS``-th halved
+    fresh correction of a step longer than the shortest sub-step: Newton cycling between
+    a station's sliding directions, which a shorter step resolves). With
+    ``settings.globalized``, a backtracking line search: when the iterate a fresh (exact
+    Newton) correction led to has a larger :func:`merit` than the iterate it started from,
+    the correction is halved from there (the matrix kept),
     while more than ``_MIN_FRACTION`` of it is applied; exact Newton on a slack, nearly inextensible rod
     overshoots (the linearized stretch of a turning element), and its residual then
     grows from iterate to iterate until the step is halved. With joints the unknowns are ``w`` and the
@@ -197,6 +210,9 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     # while the solution sticks); halving a correction that does not shrink breaks the
     # cycle (the onset-of-contact block of tests/test_friction_dynamics.py)
     damped = stick_slip.active(model)
+    # ... and one that keeps cycling (_CYCLE_HALVINGS) ends early where a sub-step can
+    # take over (advance: the shortest sub-step is dt / 2**max_halvings)
+    splittable = h > 1.5 * settings.dt / 2.0 ** settings.max_halvings
 
     def held(r_z):
         """The constraints hold at the current iterate: the joints' gaps / char_length and
@@ -234,10 +250,12 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
                                         obstacles_too=False)
         dw, dmu = fraction * dw, fraction * dmu
         size = full = step_norm(model, dw)
+        halvings = c.halvings
         if damped:   # a fresh correction no smaller than the last full one is halved
             halve = c.fresh & (size >= c.previous)
             dw, dmu = jnp.where(halve, 0.5 * dw, dw), jnp.where(halve, 0.5 * dmu, dmu)
             size = jnp.where(halve, 0.5 * size, size)
+            halvings = halvings + halve
         finite = jnp.all(jnp.isfinite(dw))
         off_branch = jnp.max(jnp.linalg.norm((c.w + dw)[:, 3:], axis=1)) > 0.5 * jnp.pi
         bad = ~finite | off_branch
@@ -255,7 +273,8 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
                      & held(r_z) & (fraction == 1.0))   # a cut correction is no estimate
         status = ladder(converged, ((c.fresh & ~finite, Status.NONFINITE),
                                     (c.fresh & off_branch, Status.OFF_BRANCH),
-                                    (c.iterations + 1 >= settings.max_iterations,
+                                    ((c.iterations + 1 >= settings.max_iterations)
+                                     | (splittable & (halvings >= _CYCLE_HALVINGS)),
                                      Status.MAX_ITERATIONS)))
         trial = c.fresh & ~keep
         half = 0.5 * c.fraction
@@ -271,7 +290,7 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
             jnp.where(back | ~trial, c.base_merit, now_merit),
             jnp.where(back | ~trial, c.step, w_new - c.w),
             jnp.where(back | ~trial, c.step_mu, mu_new - c.mu),
-            jnp.where(back, half, jnp.where(trial, 1.0, 0.0)))
+            jnp.where(back, half, jnp.where(trial, 1.0, 0.0)), halvings)
 
     stale = memory.renew | (jnp.abs(memory.h - h) > 1e-9 * h)
     # drives that turn by pi/2 or more in the step: off the branch before any iteration
@@ -281,7 +300,7 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
                         jnp.array(jnp.inf), jnp.array(False), jnp.array(jnp.inf),
                         memory.multipliers, jnp.array(0.0), tracked if contact else None,
                         w0, memory.multipliers, jnp.array(jnp.inf), jnp.zeros_like(w0),
-                        jnp.zeros_like(memory.multipliers), jnp.array(0.0))
+                        jnp.zeros_like(memory.multipliers), jnp.array(0.0), jnp.array(0))
     c = iterate(body, init)
     memory = memory._replace(
         factors=c.factors, h=jnp.asarray(h, jnp.float64),
