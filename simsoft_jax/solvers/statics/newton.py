@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ...couplings import coupling, tendon_lengths
+from ...couplings import coupling, rod_pairs, tendon_lengths
 from ...math import lie
 from ...physics.assembly import residual_and_tangent
 from ...physics.inertia import line_density
@@ -273,6 +273,23 @@ def newton_outcome(c: NewtonState):
     carry."""
     return (c.R, c.p, c.y, jnp.maximum(c.iterations - 1, 0), c.res, c.status,
             c.tangent, c.positive)
+
+
+def contact_status(model: Model, R, p, status):
+    """``status`` of a Newton solve that ended at frames (R, p) (N,3,3), (N,3), but
+    ``CONTACT_PAIRS`` where it is ``NONFINITE`` because those frames hold more rod-rod
+    candidate pairs than ``[contact] max_pairs`` (or touching nodes than its node
+    capacity): :func:`simsoft_jax.couplings.rod_pairs.overflows`, where the contact
+    residual is NaN by design. The pairs are counted only when some (batched) lane
+    ended ``NONFINITE``; ``status`` unchanged without rod-rod contact."""
+    if not model.structure.self_contact:
+        return status
+    from ..batched import any_lane    # batched imports this package
+    nonfinite = status == Status.NONFINITE
+    return jax.lax.cond(any_lane(nonfinite),
+                        lambda: jnp.where(nonfinite & rod_pairs.overflows(model, R, p),
+                                          Status.CONTACT_PAIRS, status),
+                        lambda: status)
 
 
 def newton_solve(model: Model, settings: StaticSettings, R, p, y, lam, ref, previous=None,
