@@ -129,10 +129,10 @@ def after_newton(model: Model, settings: StaticSettings, c: ContinuationState, d
     to the side of the last load step's increment ``d`` (N,6) of :func:`trial_level`);
     after that try it is accepted. With settling rods (:func:`.newton.settling_force`) the
     full-load level is repeated, each one sprung to the one before, until one is
-    settled (:func:`.newton.settled`). A solve made non-finite by more rod-rod pairs than
-    ``[contact] max_pairs`` fails with ``CONTACT_PAIRS`` (:func:`.newton.contact_status`),
-    the cause a stopped continuation reports. The other arguments are
-    :func:`newton_outcome`'s."""
+    settled (:func:`.newton.settled`). A solve made non-finite by more rod-rod candidate
+    pairs than ``[contact] max_pairs`` fails with ``CONTACT_PAIRS``
+    (:func:`.newton.contact_status`), the cause a stopped continuation reports. The
+    other arguments are :func:`newton_outcome`'s."""
     status = contact_status(model, R, p, status)
     converged = status == Status.CONVERGED
     stable_now, lost, kick = _watch(model, c, d, converged, tangent, positive)
