@@ -144,6 +144,28 @@ def test_gradients_through_rod_contact_match_finite_differences(model):
     np.testing.assert_allclose(jac[0, 0] - jac[1, 0], delta / 2, rtol=5e-3)
 
 
+def test_more_pairs_than_max_pairs_stop_the_static_solve_with_a_status_naming_it(model,
+                                                                                  solved):
+    """The crossing rods start within contact reach at their middle nodes, where the two
+    elements of one rod meeting there face the two of the other: 4 element pairs. With
+    ``max_pairs = 1`` every load level fails on the overflow, so the continuation stops
+    at load level 0 with the cause ``contact_pairs`` (not ``nonfinite``) and a message
+    naming ``[contact] max_pairs``, keeping the last converged state (the start). With
+    the 4 pairs the same solve converges with the top rod resting on the bottom one:
+    their middles a sum of radii apart, less a penetration within the penalty's
+    smoothing width."""
+    few = model.replace(structure=dataclasses.replace(model.structure, contact_pairs=1))
+    eq = statics.solve_static(few)
+    assert not bool(eq.converged)
+    assert sj.Status(int(eq.status)) == sj.Status.STEP_TOO_SMALL
+    assert sj.Status(int(eq.cause)) == sj.Status.CONTACT_PAIRS
+    assert "[contact] max_pairs" in eq.message()
+    assert float(eq.load_level) == 0.0
+    np.testing.assert_array_equal(eq.p, model.p0)
+    gap = float(solved.p[TOP_MID, 2] - solved.p[BOTTOM_MID, 2])
+    assert 2 * R_C - EPS < gap < 2 * R_C
+
+
 def test_result_contacts_entry_for_rod_pairs(model, solved, tmp_path):
     result = Result(Scene.from_dict(SCENE), model, jax.device_get(solved), 0.0, 0.0)
     path = result.save(tmp_path / "crossing.json")

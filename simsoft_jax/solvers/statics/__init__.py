@@ -39,8 +39,8 @@ from ..status import Status, raise_if_failed
 # the package's names, re-exported (batched sweeps, the dynamics, results import them here)
 from . import branch
 from .newton import (NewtonState, newton_solve, no_tangent, update_frames,  # noqa: F401
-                     at_level, level_tolerance, load_scale, max_load_step, newton_outcome,
-                     newton_pass, newton_start, settled, settling_force)
+                     at_level, contact_status, level_tolerance, load_scale, max_load_step,
+                     newton_outcome, newton_pass, newton_start, settled, settling_force)
 from .settings import Equilibrium, StaticSettings, as_traced, settings_from_scene  # noqa: F401
 
 
@@ -129,7 +129,11 @@ def after_newton(model: Model, settings: StaticSettings, c: ContinuationState, d
     to the side of the last load step's increment ``d`` (N,6) of :func:`trial_level`);
     after that try it is accepted. With settling rods (:func:`.newton.settling_force`) the
     full-load level is repeated, each one sprung to the one before, until one is
-    settled (:func:`.newton.settled`). The other arguments are :func:`newton_outcome`'s."""
+    settled (:func:`.newton.settled`). A solve made non-finite by more rod-rod candidate
+    pairs than ``[contact] max_pairs`` fails with ``CONTACT_PAIRS``
+    (:func:`.newton.contact_status`), the cause a stopped continuation reports. The
+    other arguments are :func:`newton_outcome`'s."""
+    status = contact_status(model, R, p, status)
     converged = status == Status.CONVERGED
     stable_now, lost, kick = _watch(model, c, d, converged, tangent, positive)
     dlam_min = settings.min_step_fraction / settings.load_steps
