@@ -389,3 +389,42 @@ def test_border_unknowns_that_couple_to_nothing_are_left_out_exactly(coupled):
         ref = np.linalg.solve(A.T if transpose else A, np.concatenate([b.ravel(), c]))
         assert rel_err(np.concatenate([np.ravel(x), y]), ref) < 1e-11
         np.testing.assert_allclose(np.asarray(y)[~on], c[~on] / 2.5, rtol=1e-12)
+
+
+def test_vmapped_border_of_several_sizes_keeps_one_branch_and_matches_numpy():
+    """Three lanes with 5, 40 and 70 coupled unknowns of a 200-unknown border, vmapped:
+    the size chosen is the one holding the lane with the most (simsoft_jax.math.lanes), so
+    the program keeps the size choice as a branch (under vmap a branch on a batched
+    index would run every size, and on jaxlib < 0.11.2 their batched LU calls at once
+    can hang the thread pool), and each lane's solve matches the dense NumPy solve."""
+    rng = np.random.default_rng(7)
+    n, m = 20, 200
+    lanes = []
+    for coupled in (5, 40, 70):
+        on = np.zeros(m, bool)
+        on[rng.choice(m, coupled, replace=False)] = True
+        blocks = random_blocks(n, rng)
+        B = rng.normal(size=(n, 6, m)) * on
+        C = rng.normal(size=(m, n, 6)) * on[:, None, None]
+        D = np.where(np.outer(on, on), rng.normal(size=(m, m)), 0.0) + np.diag(
+            np.where(on, -8.0, 2.5))
+        lanes.append((blocks, B, C, D, rng.normal(size=(n, 6)), rng.normal(size=m)))
+    stacked = jax.tree.map(lambda *a: jnp.stack([jnp.asarray(x) for x in a]), *lanes)
+
+    def solve(blocks, B, C, D, b, c):
+        return linalg.solve_coupled(linalg.factorize_coupled(blocks, B, C, D), b, c)
+
+    batched = jax.vmap(solve)
+    # the sizes stay a branch: a cond of one branch per size, each with its LU
+    jaxpr = jax.make_jaxpr(batched)(*stacked).jaxpr
+    sized = [e for e in jaxpr.eqns if e.primitive.name == "cond"
+             and len(e.params["branches"]) == len(linalg.border_sizes(m))
+             and all("lu" in {q.primitive.name for q in b.jaxpr.eqns}
+                     for b in e.params["branches"])]
+    assert len(sized) == 1
+    x, y = jax.jit(batched)(*stacked)
+    for k, (blocks, B, C, D, b, c) in enumerate(lanes):
+        A = np.block([[np.asarray(linalg.dense(blocks)), B.reshape(6 * n, m)],
+                      [C.reshape(m, 6 * n), D]])
+        ref = np.linalg.solve(A, np.concatenate([b.ravel(), c]))
+        assert rel_err(np.concatenate([np.ravel(x[k]), y[k]]), ref) < 1e-11

@@ -30,6 +30,7 @@ from . import broad_phase
 from .drives import restrict, restrict_border
 from ..physics.assembly import assemble_blocks, element_poses, rod_end_flags
 from ..physics.terms import rod_contact
+from ..math.lanes import lane_max
 
 
 class Pairs(NamedTuple):
@@ -238,7 +239,8 @@ def _residuals_and_tangents(args, active, m: int):
 
     if len(sizes) == 1:
         return g, tangents(sizes[0])()
-    which = jnp.sum(jnp.asarray(sizes) >= jnp.sum(touching)) - 1
+    # one branch also under vmap: the size of the lane with the most (math.lanes)
+    which = jnp.sum(jnp.asarray(sizes) >= lane_max(jnp.sum(touching))) - 1
     return g, jax.lax.switch(which, [tangents(c) for c in sizes])
 
 

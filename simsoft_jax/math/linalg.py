@@ -47,6 +47,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .lanes import lane_max
 from .xla import take_rows
 
 
@@ -478,8 +479,9 @@ def factorize_coupled(blocks, B, C, D, identity: tuple = ()) -> CoupledFactors:
                     jnp.concatenate([perm, jnp.arange(k, m, dtype=perm.dtype)]))
         return branch
 
-    # the smallest size holding every coupled unknown: sizes decrease
-    which = jnp.sum(jnp.asarray(sizes) >= jnp.sum(coupled)) - 1
+    # the smallest size holding every coupled unknown (of every lane under vmap, so that
+    # one branch runs: simsoft_jax.math.lanes): sizes decrease
+    which = jnp.sum(jnp.asarray(sizes) >= lane_max(jnp.sum(coupled))) - 1
     KinvB_o, f_t, perm = jax.lax.switch(which, [solved(k) for k in sizes])
     KinvB = KinvB_o[..., jnp.argsort(order)]     # back to the unknowns' own order
     return CoupledFactors(chain, B, C, KinvB, f_t, perm, order)

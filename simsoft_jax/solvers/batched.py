@@ -22,9 +22,8 @@ but its passes carry the secant predictor and Newton restart of every lane, so i
 chunks the nested solver is cheaper: ``sweeps`` uses the flat loop from
 ``sweeps.FLAT_FROM`` points per chunk on.
 
-:func:`any_lane` is ``pred`` for one lane and "any lane's ``pred``" for a vmapped batch: a
-``lax.cond`` on it stays a branch under ``vmap`` (used by the dynamic Newton solver to
-rebuild its iteration matrix only when some lane needs it).
+Conditions that should stay branches under ``vmap`` (the dynamic Newton solver's matrix
+rebuild, the static solver's stability test) use :mod:`simsoft_jax.math.lanes`.
 """
 from __future__ import annotations
 
@@ -32,7 +31,6 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-from jax.custom_batching import custom_vmap
 
 from ..model.model import Model
 from .statics import (Equilibrium, StaticSettings, after_newton, continuation_result,
@@ -87,13 +85,3 @@ def solve_static_lane(model: Model, settings: StaticSettings) -> Equilibrium:
     return equilibrium(model, settings, flat_continuation)
 
 
-@custom_vmap
-def any_lane(pred):
-    """``pred`` (a boolean scalar) for one lane; under ``vmap``, whether any lane's is true
-    (unbatched, so a ``lax.cond`` on it stays a branch)."""
-    return pred
-
-
-@any_lane.def_vmap
-def _any_lane_vmap(axis_size, in_batched, pred):
-    return (jnp.any(pred) if in_batched[0] else pred), False

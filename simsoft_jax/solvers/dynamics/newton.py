@@ -18,7 +18,8 @@ import jax.numpy as jnp
 
 from ...couplings import coupling, rod_pairs
 from ...physics import stick_slip
-from ..batched import any_lane, select
+from ..batched import select
+from ...math.lanes import any_lane
 from ...math.linalg import CoupledFactors, factorize_coupled, implicit_solve_coupled
 from ...couplings.drives import drive_turn, held_increments, slide_maps
 from ..newton import (RUNNING, capped, coupled_step, implicit, iterate, ladder, step_norm,

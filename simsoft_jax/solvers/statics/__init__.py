@@ -29,6 +29,7 @@ import numpy as np
 from .. import compile_cache, swept_check
 from ...couplings import coupling
 from ...math import lie
+from ...math.lanes import any_lane
 from ...math.xla import jit, traced
 from ...physics.assembly import residual, residual_and_tangent
 from ...math.linalg import implicit_solve_coupled
@@ -169,7 +170,6 @@ def _watch(model: Model, c: ContinuationState, d, converged, tangent, positive):
     last accepted level, and the branch-switching move (N,6) for a lost one, to the side
     of the last load step's increment ``d`` (N,6). The test runs only when some (batched)
     lane converged, the move only when some lane lost stability."""
-    from ..batched import any_lane   # batched imports this package
 
     zero = jnp.zeros_like(c.kick)
     if not branch.watched(model):

@@ -12,6 +12,7 @@ import numpy as np
 
 from ...couplings import coupling, rod_pairs, tendon_lengths
 from ...math import lie
+from ...math.lanes import any_lane
 from ...physics.assembly import residual_and_tangent
 from ...physics.inertia import line_density
 from ...math.linalg import pivots_positive_definite
@@ -236,7 +237,6 @@ def newton_pass(model: Model, settings: StaticSettings, lam, ref, c: NewtonState
     done = status != RUNNING
     positive = jnp.array(False)
     if symmetric_at_equilibrium(model):   # the stability watch's test, at the converged pass
-        from ..batched import any_lane    # batched imports this package
         positive = jax.lax.cond(any_lane(status == Status.CONVERGED),
                                 lambda: pivots_positive_definite(factors.chain),
                                 lambda: positive)
@@ -288,7 +288,6 @@ def contact_status(model: Model, R, p, status):
     unchanged without rod-rod contact."""
     if not model.structure.self_contact:
         return status
-    from ..batched import any_lane    # batched imports this package
     nonfinite = status == Status.NONFINITE
 
     def named():
