@@ -363,12 +363,12 @@ def test_positive_definite_matches_numpy_eigenvalues(n):
             linalg.factorize((shifted, upper, lower))))
 
 
-@pytest.mark.parametrize("coupled", [5, 40, 70, 200])
+@pytest.mark.parametrize("coupled", [0, 5, 40, 70, 200])
 def test_border_unknowns_that_couple_to_nothing_are_left_out_exactly(coupled):
     """A border of 200 unknowns of which only ``coupled`` (scattered, not the first)
     have columns of B, rows of C and off-diagonal entries of D; the others only D's
     diagonal (2.5): the factorization solves for the smallest of the border sizes that
-    holds the coupled ones, and the solve and transposed solve match the dense NumPy
+    holds the coupled ones (none at all for 0), and the solve and transposed solve match the dense NumPy
     solve of the whole assembled matrix, the decoupled unknowns y_j = c_j / 2.5."""
     rng = np.random.default_rng(coupled)
     n, m = 30, 200

@@ -206,8 +206,8 @@ def _scatter(n_nodes, nodes, g):
 
 def _tangent_sizes(capacity: int) -> tuple:
     """The numbers of pair tangents (static, decreasing from ``capacity``)
-    :func:`_residuals_and_tangents` chooses from: halved while above 8, at most three
-    (each is a branch XLA compiles: the default 8 pairs keep one)."""
+    :func:`_residuals_and_tangents` chooses from besides none: halved while above 8, at
+    most three (each is a branch XLA compiles: the default 8 pairs keep one)."""
     sizes = [capacity]
     while sizes[-1] > 8 and len(sizes) < 3:
         sizes.append(-(-sizes[-1] // 2))
@@ -219,8 +219,9 @@ def _residuals_and_tangents(args, active, m: int):
     (:func:`_pair_args`), zero where not ``active``. A tangent (24 derivatives of the
     residual, ~30 times its cost) is formed only for the pairs with a nonzero residual,
     moved to the front: the smallest of :func:`_tangent_sizes` that holds them
-    (``lax.switch``); a pair whose residual is zero is out of reach (its penalty and
-    weights are C2 and vanish there with their derivatives), so its tangent is zero."""
+    (``lax.switch``), or none where no pair touches; a pair whose residual is zero is
+    out of reach (its penalty and weights are C2 and vanish there with their
+    derivatives), so its tangent is zero."""
     g = jax.vmap(lambda *a: rod_contact.pair_residual(*a, m))(*args) * active[:, None]
     touching = active & jnp.any(g != 0, axis=1)
     order = jnp.argsort(~touching, stable=True)
@@ -228,6 +229,8 @@ def _residuals_and_tangents(args, active, m: int):
 
     def tangents(count):
         def branch():
+            if count == 0:
+                return jnp.zeros(g.shape + g.shape[-1:], g.dtype)
             first = order[:count] if count < active.shape[0] else slice(None)
             k = jax.vmap(lambda *a: rod_contact.pair_residual_and_tangent(*a, m)[1])(
                 *jax.tree_util.tree_map(lambda x: x[first], args))
@@ -237,8 +240,7 @@ def _residuals_and_tangents(args, active, m: int):
             return jnp.zeros((active.shape[0],) + k.shape[1:], k.dtype).at[first].set(k)
         return branch
 
-    if len(sizes) == 1:
-        return g, tangents(sizes[0])()
+    sizes = sizes + (0,)
     # one branch also under vmap: the size of the lane with the most (math.lanes)
     which = jnp.sum(jnp.asarray(sizes) >= lane_max(jnp.sum(touching))) - 1
     return g, jax.lax.switch(which, [tangents(c) for c in sizes])
@@ -287,12 +289,13 @@ def system(model, R, p, r, blocks, T=None, slide=None, pairs=None):
     W = jnp.zeros((6 * cap, 6 * cap), p.dtype)
     W = W.at[rows[:, :12, None], rows[:, None, 12:]].add(k[:, :12, 12:])
     W = W.at[rows[:, 12:, None], rows[:, None, :12]].add(k[:, 12:, :12])
-    real = uniq < n
-    node = jnp.repeat(jnp.where(real, uniq, 0), 6)                           # (6 cap,)
-    dof = jnp.tile(jnp.arange(6), cap)
-    unit = jnp.repeat(real, 6).astype(p.dtype)
-    U = jnp.zeros((n, 6, 6 * cap), p.dtype).at[node, dof, jnp.arange(6 * cap)].set(unit)
-    C = jnp.zeros((6 * cap, n, 6), p.dtype).at[:, node, dof].add(W * unit[None, :])
+    # each node's border column per dof (N,6), 6 cap for a node not in the border: U by a
+    # comparison and C = W U^T by a gather of W's columns (a scatter runs as a loop on CPU)
+    at = jnp.minimum(jnp.searchsorted(uniq, jnp.arange(n)), cap - 1)
+    column = jnp.where((uniq[at] == jnp.arange(n))[:, None], 6 * at[:, None] + jnp.arange(6),
+                       6 * cap)
+    U = (column[:, :, None] == jnp.arange(6 * cap)).astype(p.dtype)
+    C = jnp.concatenate([W, jnp.zeros((6 * cap, 1), p.dtype)], axis=1)[:, column]
     U, C = restrict_border(s, slide, U, C)
     r = jnp.where(crowded, jnp.nan, r)
     return r, blocks, Coupling(U, C, -jnp.eye(6 * cap, dtype=p.dtype))

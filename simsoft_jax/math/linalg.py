@@ -407,17 +407,20 @@ def implicit_solve(blocks, b, identity: tuple = ()):
 
 @functools.partial(jax.tree_util.register_dataclass,
                    data_fields=("chain", "B", "C", "KinvB", "schur_lu", "schur_perm",
-                                "order"),
+                                "order", "size"),
                    meta_fields=())
 @dataclasses.dataclass(frozen=True)
 class CoupledFactors:
     """Factors of ``[[K, B], [C, D]]`` (:func:`factorize_coupled`), a pytree: ``chain`` the
     :class:`Factors` of ``K``; ``B`` (N,6,m) and ``C`` (m,N,6) the couplings; ``KinvB``
-    (N,6,m) ``= K^-1 B``; ``schur_lu`` (m,m) and ``schur_perm`` (m,) the :func:`lu` of the
-    Schur complement in the order ``order`` (m,) of the border unknowns, ``S[order][:,
-    order]`` with ``S = D - C K^-1 B`` (the unknowns that couple first,
-    :func:`factorize_coupled`; None: the unknowns' own order, a border of one size); the
-    last four are None when m = 0."""
+    (N,6,m) ``= K^-1 B[..., order]``; ``schur_lu`` (m,m) and ``schur_perm`` (m,) the
+    :func:`lu` of the Schur complement in the order ``order`` (m,) of the border unknowns,
+    ``S[order][:, order]`` with ``S = D - C K^-1 B`` (the unknowns that couple first,
+    :func:`factorize_coupled`; None: the unknowns' own order, a border of one size);
+    ``size`` () the index in ``border_sizes(m) + (0,)`` of the leading unknowns (in
+    ``order``) factorized as a whole, the others coupling to nothing (their ``KinvB``
+    columns zero, their factor D's diagonal; None with ``order``); the last five are None
+    when m = 0."""
     chain: Factors
     B: jax.Array
     C: jax.Array
@@ -425,6 +428,7 @@ class CoupledFactors:
     schur_lu: jax.Array | None
     schur_perm: jax.Array | None
     order: jax.Array | None
+    size: jax.Array | None = None
 
 
 def border_sizes(m: int) -> tuple:
@@ -447,9 +451,10 @@ def factorize_coupled(blocks, B, C, D, identity: tuple = ()) -> CoupledFactors:
     Border unknowns that couple to nothing (their column of B, row of C and off-diagonal
     row and column of D exactly zero: e.g. the unused node slots of rod-rod contact) have
     ``K^-1 B = 0`` there and ``S``'s row and column equal to D's: they are ordered last,
-    and only the smallest of :func:`border_sizes` that holds the others is solved for
-    (``lax.switch``; the rest of the factor is D's diagonal), O(N k) + O(k^3) for k of
-    them. Exact (the same operations on the coupled unknowns)."""
+    and only the smallest of :func:`border_sizes` (or none, where no unknown couples) that
+    holds the others is solved for (``lax.switch``; the rest of the factor is D's
+    diagonal), O(N k) + O(k^3) for k of them; :func:`solve_coupled` takes the same size.
+    Exact (the same operations on the coupled unknowns)."""
     chain = factorize(blocks, identity)
     m = B.shape[-1]
     if m == 0:
@@ -459,6 +464,7 @@ def factorize_coupled(blocks, B, C, D, identity: tuple = ()) -> CoupledFactors:
         KinvB = solve_factored(chain, B)
         return CoupledFactors(chain, B, C, KinvB,
                               *lu(D - jnp.einsum("anj,njb->ab", C, KinvB)), None)
+    sizes = sizes + (0,)
     off = D - jnp.diag(jnp.diag(D))
     coupled = (jnp.any(B != 0, axis=(0, 1)) | jnp.any(C != 0, axis=(1, 2))
                | jnp.any(off != 0, axis=0) | jnp.any(off != 0, axis=1))
@@ -466,7 +472,9 @@ def factorize_coupled(blocks, B, C, D, identity: tuple = ()) -> CoupledFactors:
 
     def solved(k):
         def branch():
-            first = order[:k]
+            first, rest = order[:k], jnp.diag(D)[order[k:]]
+            if k == 0:
+                return (jnp.zeros_like(B), jnp.diag(rest), jnp.arange(m, dtype=jnp.uint32))
             KinvB = solve_factored(chain, B[..., first])
             S = D[first][:, first] - jnp.einsum("anj,njb->ab", C[first], KinvB)
             f_t, perm = lu(S)
@@ -475,7 +483,7 @@ def factorize_coupled(blocks, B, C, D, identity: tuple = ()) -> CoupledFactors:
             return (jnp.concatenate([KinvB, jnp.zeros(KinvB.shape[:2] + (m - k,),
                                                       KinvB.dtype)], axis=-1),
                     jnp.zeros((m, m), S.dtype).at[:k, :k].set(f_t)
-                    .at[np.arange(k, m), np.arange(k, m)].set(jnp.diag(D)[order[k:]]),
+                    .at[np.arange(k, m), np.arange(k, m)].set(rest),
                     jnp.concatenate([perm, jnp.arange(k, m, dtype=perm.dtype)]))
         return branch
 
@@ -483,8 +491,7 @@ def factorize_coupled(blocks, B, C, D, identity: tuple = ()) -> CoupledFactors:
     # one branch runs: simsoft_jax.math.lanes): sizes decrease
     which = jnp.sum(jnp.asarray(sizes) >= lane_max(jnp.sum(coupled))) - 1
     KinvB_o, f_t, perm = jax.lax.switch(which, [solved(k) for k in sizes])
-    KinvB = KinvB_o[..., jnp.argsort(order)]     # back to the unknowns' own order
-    return CoupledFactors(chain, B, C, KinvB, f_t, perm, order)
+    return CoupledFactors(chain, B, C, KinvB_o, f_t, perm, order, which)
 
 
 def solve_coupled(factors: CoupledFactors, b, c, transpose=False):
@@ -496,25 +503,49 @@ def solve_coupled(factors: CoupledFactors, b, c, transpose=False):
     Transposed: ``y = S^-T (c - B^T K^-T b)``, ``x = K^-T (b - C^T y)``: two transposed
     chain solves. For m = 0 this is :func:`solve_factored` and ``y = c``. ``S`` is
     factorized in the order ``factors.order``: ``y[order]`` solves with ``S[order][:,
-    order]`` and the right-hand side's ``[order]``.
+    order]`` and the right-hand side's ``[order]``, the unknowns that couple to nothing
+    by D's diagonal alone (``lax.switch`` on ``factors.size``: O(N k + k^2) for the k
+    that couple).
     """
     chain = factors.chain
-    x0 = solve_factored(chain, b, transpose)
-    if factors.B.shape[-1] == 0:
-        return x0, c
+    m = factors.B.shape[-1]
+    if m == 0:
+        return solve_factored(chain, b, transpose), c
     schur, order = (factors.schur_lu, factors.schur_perm), factors.order
+    if order is None:
+        x0 = solve_factored(chain, b, transpose)
+        if transpose:
+            y = lu_solve(schur, c - jnp.einsum("nja,nj->a", factors.B, x0), True)
+            return solve_factored(chain, b - jnp.einsum("anj,a->nj", factors.C, y),
+                                  transpose=True), y
+        y = lu_solve(schur, c - jnp.einsum("anj,nj->a", factors.C, x0))
+        return x0 - jnp.einsum("nja,a->nj", factors.KinvB, y), y
 
-    def schur_solve(rhs, transpose):
-        if order is None:
-            return lu_solve(schur, rhs, transpose)
-        return jnp.zeros_like(rhs).at[order].set(lu_solve(schur, rhs[order], transpose))
+    def solved(k):
+        """The solve with the first k unknowns of ``order`` coupled (the others' B
+        columns, C rows and KinvB columns zero: ``y = c / D_jj`` there)."""
+        def branch(b, c):
+            first, later = order[:k], order[k:]
+            y_later = c[later] / jnp.diagonal(factors.schur_lu)[k:]
+            x0 = solve_factored(chain, b, transpose)
+            if k == 0:
+                return x0, jnp.zeros_like(c).at[later].set(y_later)
+            part = (factors.schur_lu[:k, :k], factors.schur_perm[:k])
+            if transpose:
+                y = lu_solve(part, c[first] - jnp.einsum("nja,nj->a", factors.B[..., first],
+                                                          x0), True)
+                x = solve_factored(chain, b - jnp.einsum("anj,a->nj", factors.C[first], y),
+                                   transpose=True)
+            else:
+                y = lu_solve(part, c[first] - jnp.einsum("anj,nj->a", factors.C[first], x0))
+                x = x0 - jnp.einsum("nja,a->nj", factors.KinvB[..., :k], y)
+            return x, jnp.zeros_like(c).at[order].set(jnp.concatenate([y, y_later]))
+        return branch
 
-    if transpose:
-        y = schur_solve(c - jnp.einsum("nja,nj->a", factors.B, x0), True)
-        return solve_factored(chain, b - jnp.einsum("anj,a->nj", factors.C, y),
-                              transpose=True), y
-    y = schur_solve(c - jnp.einsum("anj,nj->a", factors.C, x0), False)
-    return x0 - jnp.einsum("nja,a->nj", factors.KinvB, y), y
+    # factors selected lane by lane under vmap may differ in size: the largest of the
+    # lanes' (its solve is exact for the smaller ones too), so one branch runs
+    size = -lane_max(-factors.size)
+    return jax.lax.switch(size, [solved(k) for k in border_sizes(m) + (0,)], b, c)
 
 
 def implicit_solve_coupled(blocks, B, C, D, b, c, identity: tuple = ()):
