@@ -392,7 +392,7 @@ def test_border_unknowns_that_couple_to_nothing_are_left_out_exactly(coupled):
 
 
 def test_vmapped_border_of_several_sizes_keeps_one_branch_and_matches_numpy():
-    """Three lanes with 5, 40 and 70 coupled unknowns of a 200-unknown border, vmapped:
+    """Three lanes with 0, 40 and 150 coupled unknowns of a 200-unknown border, vmapped:
     the size chosen is the one holding the lane with the most (simsoft_jax.math.lanes), so
     the program keeps the size choice as a branch (under vmap a branch on a batched
     index would run every size, and on jaxlib < 0.11.2 their batched LU calls at once
@@ -400,7 +400,7 @@ def test_vmapped_border_of_several_sizes_keeps_one_branch_and_matches_numpy():
     rng = np.random.default_rng(7)
     n, m = 20, 200
     lanes = []
-    for coupled in (5, 40, 70):
+    for coupled in (0, 40, 150):       # one for each size: 0, 100, 200
         on = np.zeros(m, bool)
         on[rng.choice(m, coupled, replace=False)] = True
         blocks = random_blocks(n, rng)
@@ -415,14 +415,28 @@ def test_vmapped_border_of_several_sizes_keeps_one_branch_and_matches_numpy():
         return linalg.solve_coupled(linalg.factorize_coupled(blocks, B, C, D), b, c)
 
     batched = jax.vmap(solve)
-    # the sizes stay a branch: a cond of one branch per size, each with its LU
+    # the sizes stay branches: the factorization's and the solve's conds of one branch per
+    # size (and one for no coupled unknown), an LU in each factorization branch but that
     jaxpr = jax.make_jaxpr(batched)(*stacked).jaxpr
     sized = [e for e in jaxpr.eqns if e.primitive.name == "cond"
-             and len(e.params["branches"]) == len(linalg.border_sizes(m))
-             and all("lu" in {q.primitive.name for q in b.jaxpr.eqns}
-                     for b in e.params["branches"])]
-    assert len(sized) == 1
+             and len(e.params["branches"]) == len(linalg.border_sizes(m)) + 1]
+    assert len(sized) == 2
+    assert sorted(sum("lu" in {q.primitive.name for q in b.jaxpr.eqns}
+                      for b in e.params["branches"]) for e in sized) == [
+        0, len(linalg.border_sizes(m))]
     x, y = jax.jit(batched)(*stacked)
+    # factors made lane by lane (their sizes differ), solved vmapped: the solve is done
+    # at the largest lane's size, still one branch, and exact for every lane
+    one = jax.jit(linalg.factorize_coupled)
+    factors = jax.tree.map(lambda *a: jnp.stack(a), *(
+        one(*(jax.tree.map(lambda a: a[k], stacked[:4]))) for k in range(3)))
+    assert sorted(np.asarray(factors.size).tolist()) == [0, 1, 2]
+    solve_lanes = jax.vmap(linalg.solve_coupled)
+    assert "cond" in {e.primitive.name for e in jax.make_jaxpr(solve_lanes)(
+        factors, *stacked[4:]).jaxpr.eqns}
+    x2, y2 = jax.jit(solve_lanes)(factors, *stacked[4:])
+    np.testing.assert_allclose(np.asarray(y2), np.asarray(y), rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(np.asarray(x2), np.asarray(x), rtol=1e-10, atol=1e-12)
     for k, (blocks, B, C, D, b, c) in enumerate(lanes):
         A = np.block([[np.asarray(linalg.dense(blocks)), B.reshape(6 * n, m)],
                       [C.reshape(m, 6 * n), D]])
