@@ -216,3 +216,30 @@ def test_a_rope_swinging_clear_of_a_plane_with_friction_steps_like_a_frictionles
     assert free.converged and over.converged
     np.testing.assert_allclose(over.positions("rope"), free.positions("rope"), atol=1e-9)
     assert np.sum(over.raw.iterations) <= 1.2 * np.sum(free.raw.iterations)
+
+
+def test_newton_does_not_cycle_on_a_block_held_near_the_friction_angle_at_long_steps():
+    """The block on the incline at tan a = 0.9 mu and 1.1 mu with steps of 20 ms, where its
+    tangential springs (K_B) are 400 times the step's inertia term rhoA / dt^2: a
+    correction made while a station slides (the saturated law's slope along the slip
+    vanishes) overshoots the sticking solution by about that factor, onto the other
+    sliding direction. Newton cuts such a correction where the station's trial load
+    passes nearest its anchor (``reversal_cut``): once the block's springs are loaded
+    (after the first three steps) no step takes more than 15 Newton iterations (without
+    the cut, steps 4 and 5 of the held block took 22 and 29, cycling). The answers are
+    Coulomb's: held below the friction angle (it moves by less than 1e-6 m after 0.1 s),
+    sliding above it with the acceleration g (sin a - mu cos a) to 1e-3."""
+    for ratio in (0.9, 1.1):
+        s = block_scene(ratio * MU_B, t_end=0.4)
+        s["solver"]["dt"] = 0.02
+        res = sj.run(s)
+        assert res.converged
+        assert int(np.max(np.asarray(res.raw.iterations)[3:])) <= 15
+        x, t = _block_x(res), res.time
+        later = t >= 0.1 - 1e-12
+        a = np.arctan(ratio * MU_B)
+        if ratio < 1.0:
+            assert np.ptp(x[later]) < 1e-6
+        else:
+            fit = np.polyfit(t[later], x[later], 2)
+            assert 2.0 * fit[0] == pytest.approx(G * (np.sin(a) - MU_B * np.cos(a)), rel=1e-3)

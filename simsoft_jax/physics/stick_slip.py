@@ -60,6 +60,24 @@ def anchored(loaded, anchor, t):
     return dataclasses.replace(loaded, friction_anchor=anchor + _shift(loaded, t))
 
 
+def trials(loaded, R, p):
+    """The trial line loads (E,S,K,3) N/m (world, (S1)) of the stations at the frames
+    ``R`` (N,3,3), ``p`` (N,3) against the anchors of ``loaded`` (:func:`anchored`) and
+    their Coulomb caps ``mu f_n`` (E,S,K) N/m: a station sticks while its trial is within
+    ``STICK_LIMIT`` of its cap (:func:`simsoft_jax.physics.terms.contact.stick_slip_load`)."""
+    s = loaded.structure
+    RA, pA, RB, pB = element_poses(loaded, R, p)
+    d = jax.vmap(element.relative_twist)(RA, pA, RB, pB)
+
+    def one(RA, pA, d, data):
+        _, load, normals, _, x = contact.stations(RA, pA, d, data, s.obstacle_kinds,
+                                                  s.contact_points)
+        return (contact.stick_slip_trial(x, data.anchor, normals, data.stiffness),
+                data.friction * load)
+
+    return jax.vmap(one)(RA, pA, d, contact_data(loaded))
+
+
 def updated(loaded, R, p, t):
     """The plastic anchors (E,S,K,3) (S3) at the frames ``R``, ``p`` reached at time ``t``
     by a step solved with ``loaded`` (:func:`anchored`), relative to the obstacles'

@@ -213,6 +213,15 @@ def _saturation(r):
     return STICK_LIMIT + soft * jnp.tanh((r - STICK_LIMIT) / soft)
 
 
+def stick_slip_trial(x, anchor, normals, stiffness):
+    """The trial line loads (S,K,3) N/m (world) of (S1) at the stations ``x`` (S,3) against
+    their anchors ``anchor`` (S,K,3), with the unit normals ``normals`` (S,K,3) and the
+    tangential stiffness ``stiffness`` () N/m^2."""
+    gap = x[:, None, :] - anchor
+    along = jnp.einsum("ski,ski->sk", gap, normals)
+    return -stiffness * (gap - along[..., None] * normals)
+
+
 def stick_slip_load(x, anchor, load, normals, stiffness, mu):
     """The stick-slip friction (S1)-(S3) at S stations against K obstacles: ``x`` (S,3)
     the stations (m, world), ``anchor`` (S,K,3) their anchors, ``load`` (S,K) the normal
@@ -222,9 +231,7 @@ def stick_slip_load(x, anchor, load, normals, stiffness, mu):
     Finite value and derivatives at zero slip (``|f_trial| = 0``) and out of contact
     (``c = 0``): the sticking branch is linear and the other one is evaluated only on
     safe arguments."""
-    gap = x[:, None, :] - anchor
-    along = jnp.einsum("ski,ski->sk", gap, normals)
-    trial = -stiffness * (gap - along[..., None] * normals)                    # (S1)
+    trial = stick_slip_trial(x, anchor, normals, stiffness)                    # (S1)
     cap = mu * load
     size = jax.vmap(jax.vmap(obstacles.safe_norm))(trial)
     stick = size <= STICK_LIMIT * cap

@@ -18,7 +18,9 @@ import jax.numpy as jnp
 
 from ...couplings import coupling, rod_pairs
 from ...physics import stick_slip
+from ...physics.terms.contact import STICK_LIMIT
 from ..batched import select
+from ...math import lie
 from ...math.lanes import any_lane
 from ...math.linalg import CoupledFactors, factorize_coupled, implicit_solve_coupled
 from ...couplings.drives import drive_turn, held_increments, slide_maps
@@ -132,6 +134,25 @@ class StepResult(NamedTuple):
     memory: NewtonMemory
 
 
+def reversal_cut(loaded, start, end):
+    """The fraction (scalar) of a Newton correction from the frames ``start`` to ``end``
+    ((R (N,3,3), p (N,3)) each) at which no stick-slip station that slides at both ends
+    with opposite trial line loads (S1) has passed its point nearest to its anchor (on the
+    straight path between its two trials): 1 when none reverses. Such a correction was
+    made with the station's saturated slope along its slip (g' ~ 0 in (S2)) while the
+    solution sticks; cut there, the next iterate has it sticking, where the slope is its
+    spring's."""
+    t0, c0 = stick_slip.trials(loaded, *start)
+    t1, c1 = stick_slip.trials(loaded, *end)
+    n0 = jnp.sqrt(jnp.sum(t0**2, -1))
+    n1 = jnp.sqrt(jnp.sum(t1**2, -1))
+    dt = t1 - t0
+    reverses = ((n0 > STICK_LIMIT * c0) & (n1 > STICK_LIMIT * c1) & (c0 > 0) & (c1 > 0)
+                & (jnp.sum(t0 * t1, -1) < 0.0))
+    tau = -jnp.sum(t0 * dt, -1) / jnp.where(reverses, jnp.sum(dt**2, -1), 1.0)
+    return jnp.min(jnp.where(reverses, jnp.clip(tau, 0.0, 1.0), 1.0), initial=1.0)
+
+
 def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepResult:
     """Modified Newton on F(w) = 0 (spec S66) from :func:`memory.predicted_increment`
     (or, with ``settings.globalized``, from the guess of :func:`least_residual`).
@@ -147,8 +168,9 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     Approximating ``S_t`` changes only the convergence rate, not the solution (spec 4.4).
     With rod-rod contact the predictor and every correction are cut back (halved) until
     they do not carry a rod through another rod
-    (:mod:`simsoft_jax.solvers.swept_check`); a cut correction never counts as
-    converged.
+    (:mod:`simsoft_jax.solvers.swept_check`), and with stick-slip friction cut where a
+    station sliding at both its ends would have its sliding direction reversed
+    (:func:`reversal_cut`); a cut correction never counts as converged.
     Converged when the estimated distance to the solution, ``|dw| theta / (1 - theta)``
     with the observed contraction ``theta`` (``|dw|`` itself at the first iteration and
     for ``theta`` above ``_CONTRACTION_LIMIT``), is below the tolerance and every nodal
@@ -192,6 +214,9 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
 
     def positions(w):
         return swept_check.update_positions(state.R, state.p, w)
+
+    def frames(w):
+        return jax.vmap(lie.compose_exp)(state.R, state.p, w)
 
     w0 = jnp.where(mask > 0, swept_check.cut_back(
         model, state.p, lambda t: positions(jnp.where(mask > 0, t * w0, w0)), 1.0,
@@ -250,10 +275,13 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
                                         lambda t: positions(c.w + t * dw), 1.0,
                                         obstacles_too=False)
         dw, dmu = fraction * dw, fraction * dmu
-        size = full = step_norm(model, dw)
         halvings = c.halvings
-        if damped:   # a fresh correction no smaller than the last full one is halved
-            halve = c.fresh & (size >= c.previous)
+        if damped:   # no station's sliding direction reversed by a correction
+            turn = reversal_cut(fns.loaded, frames(c.w), frames(c.w + dw))
+            dw, dmu, fraction = turn * dw, turn * dmu, turn * fraction
+        size = full = step_norm(model, dw)
+        if damped:   # a fresh correction no smaller than the last full one, not cut, is halved
+            halve = c.fresh & (turn == 1.0) & (size >= c.previous)
             dw, dmu = jnp.where(halve, 0.5 * dw, dw), jnp.where(halve, 0.5 * dmu, dmu)
             size = jnp.where(halve, 0.5 * size, size)
             halvings = halvings + halve

@@ -99,13 +99,16 @@ class StepFunctions(NamedTuple):
     the Newton residual with the couplings' forces and own residuals at ``t1``;
     system(w, mu) -> the bordered iteration matrix and residual
     (:class:`~simsoft_jax.couplings.mechanisms.Coupled`; an empty border without couplings),
-    both from :mod:`simsoft_jax.couplings.coupling`."""
+    both from :mod:`simsoft_jax.couplings.coupling`; loaded: the model with its loads at
+    ``t1`` and the stick-slip friction's anchors of the step's start
+    (:func:`simsoft_jax.physics.stick_slip.anchored`)."""
     new_state: object
     newton_residual: object
     residual_and_matrix: object
     system_residual: object
     system: object
     t1: jax.Array
+    loaded: object
 
 
 def border_sizes(structure) -> tuple[int, int]:
@@ -167,4 +170,4 @@ def step_functions(model, inert, rho_inf, state: State, h,
                                blocks, jax.vmap(lie.tangent_se3)(w), slide(w), pairs)
 
     return StepFunctions(new_state, newton_residual, residual_and_matrix,
-                         system_residual, system, t1)
+                         system_residual, system, t1, loaded)
