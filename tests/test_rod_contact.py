@@ -144,6 +144,7 @@ def test_gradients_through_rod_contact_match_finite_differences(model):
     np.testing.assert_allclose(jac[0, 0] - jac[1, 0], delta / 2, rtol=5e-3)
 
 
+@pytest.mark.slow
 def test_more_pairs_than_max_pairs_stop_the_static_solve_with_a_status_naming_it(model,
                                                                                   solved):
     """The crossing rods start within contact reach at their middle nodes, where the two
