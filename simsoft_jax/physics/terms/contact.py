@@ -303,16 +303,11 @@ def force(el, data: ContactData, length, kinds: tuple, n: int, friction: bool = 
     return -jnp.einsum("n,nji,nj->i", station_weights(length, data.caps, n), maps, wrench)
 
 
-def _pulled(d, xi, weights, local):
-    """``sum_i c_i N_i(d)^T [l_i; 0]`` (12,) at fixed section-frame loads ``l_i`` (S,3),
-    by S38: ``N^T [l; 0] = [Ad_{exp(-xi d)}[:3]^T l; 0] + xi P(d)^T T(xi d)[:3]^T l``."""
-    def station(t, c, load):
-        left = lie.adjoint_se3(lie.exp_se3(-t * d))[:3]
-        return c * (left.T @ load), (c * t) * (lie.tangent_se3(t * d)[:3].T @ load)
-
-    rigid, through = jax.vmap(station)(xi, weights, local)
-    return (jnp.concatenate([rigid.sum(0), jnp.zeros(6, d.dtype)])
-            + element.strain_map(d).T @ through.sum(0))
+def _coadjoint_bar(m):
+    """``B(m)`` (6,6) with ``ad_eta^T m = B(m) eta`` for twists ``eta = [u; w]`` and
+    ``m = [m1; m2]`` (6,) (``ad`` of spec S3): ``[[0, skew(m1)], [skew(m1), skew(m2)]]``."""
+    a, b = lie.skew(m[:3]), lie.skew(m[3:])
+    return jnp.block([[jnp.zeros((3, 3), m.dtype), a], [a, b]])
 
 
 def force_and_tangent(el, data: ContactData, length, kinds: tuple, n: int,
@@ -337,9 +332,14 @@ def force_and_tangent(el, data: ContactData, length, kinds: tuple, n: int,
         dl_i = [R^T H R, skew(l_i)] N_i y + R^T D R (-skew(a_i) (N_i y)_theta + J_i P y
                + (N_i dv_e)_u)
 
-    so ``K = -sum_i c_i N_i[:3]^T dl_i/dy - (d/dd sum_i c_i N_i(d)[:3]^T l_i) P`` (the
-    last factor by ``jax.jacfwd`` in the 6 components of d at fixed ``l_i``) and
-    ``C = -sum_i c_i N_i[:3]^T R_i^T D_i R_i N_i[:3]``. The same as ``jax.jacfwd`` of
+    so ``K = -sum_i c_i N_i[:3]^T dl_i/dy - (d/dd sum_i c_i N_i(d)[:3]^T l_i) P`` and
+    ``C = -sum_i c_i N_i[:3]^T R_i^T D_i R_i N_i[:3]``. The slopes in d (at fixed ``l_i``,
+    ``v_e``) split by S38, ``N = [A, 0] + xi T(xi d) P(d)`` with ``A = Ad_{exp(-xi d)}``:
+    the rigid part in closed form, ``dA = A ad(E dd)`` with ``E = -xi T(-xi d)`` (S20:
+    ``exp(z + dz) = exp(z) exp(T(z) dz)`` to first order), so
+    ``d(A[:3]^T l) = B(A[:3]^T l) E dd`` (:func:`_coadjoint_bar`) and
+    ``d(A v_A)_u = -A[:3] ad(v_A) E dd``; the rest, through ``T(xi d)`` and ``P(d)``, by
+    ``jax.jacfwd`` in the 6 components of d. The same as ``jax.jacfwd`` of
     :func:`force` in the 12 perturbations and the 12 velocities (checked in the tests),
     at a fraction of its cost.
     """
@@ -364,8 +364,23 @@ def force_and_tangent(el, data: ContactData, length, kinds: tuple, n: int,
     H, D = slopes[..., :3], slopes[..., 3:]
     local = jnp.einsum("sji,sj->si", R, F)                                  # R^T F (S,3)
     weights = station_weights(length, data.caps, n)
-    geometric, value = jax.jacfwd(lambda d: (_pulled(d, xi, weights, local),) * 2,
-                                  has_aux=True)(el.d)
+    # slopes in d: the rigid part A = Ad_{exp(-xi d)}[:3] of N in closed form (docstring),
+    # the part xi T(xi d)[:3] P(d) by jax.jacfwd
+    A = jax.vmap(lambda t: lie.adjoint_se3(lie.exp_se3(-t * el.d))[:3])(xi)         # (S,3,6)
+    E = -xi[:, None, None] * jax.vmap(lambda t: lie.tangent_se3(-t * el.d))(xi)     # (S,6,6)
+    rigid = jnp.einsum("sai,sa->si", A, local)                              # A^T l (S,6)
+
+    def through(d):
+        P = element.strain_map(d)
+        T = xi[:, None, None] * jax.vmap(lambda t: lie.tangent_se3(t * d)[:3])(xi)  # (S,3,6)
+        pulled = P.T @ jnp.einsum("s,sai,sa->i", weights, T, local)
+        return (pulled, (T @ (P @ el.ve)) if rate else None), pulled
+
+    (geometric, J), value = jax.jacfwd(through, has_aux=True)(el.d)   # (12,6), (S,3,6)
+    # value: sum_i c_i N_i^T [l_i; 0]
+    value = value.at[:6].add(weights @ rigid)
+    geometric = geometric.at[:6].add(jnp.einsum(
+        "s,sij,sjk->ik", weights, jax.vmap(_coadjoint_bar)(rigid), E))
     moved = jnp.concatenate([jnp.einsum("sji,sjk,skl->sil", R, H, R),
                              jax.vmap(lie.skew)(local)], axis=2)            # (S,3,6)
     direct = jnp.einsum("s,sai,sab,sbj->ij", weights, maps[:, :3, :], moved, maps)
@@ -375,8 +390,7 @@ def force_and_tangent(el, data: ContactData, length, kinds: tuple, n: int,
     damp = jnp.einsum("sji,sjk,skl->sil", R, D, R)                         # R^T D R
     a = (maps @ el.ve)[:, :3]
     # J_i = d a_i / d d at fixed v_e (P = strain_map(d) moves with d too)
-    J = jax.jacfwd(lambda d: jax.vmap(lambda t: (element.velocity_field_map(
-        t, d, element.strain_map(d)) @ el.ve)[:3])(xi))(el.d)              # (S,3,6)
+    J = J - jnp.einsum("saj,jk,skl->sal", A, lie.ad_se3(el.ve[:6]), E)
     spin = (-jnp.einsum("sab,sbj->saj", jax.vmap(lie.skew)(a), maps[:, 3:, :])
             + J @ el.P)                                                     # (S,3,12)
     K = K + jnp.einsum("s,sai,sab,sbj->ij", weights, maps[:, :3, :], damp, spin)
