@@ -60,11 +60,9 @@ def anchored(loaded, anchor, t):
     return dataclasses.replace(loaded, friction_anchor=anchor + _shift(loaded, t))
 
 
-def trials(loaded, R, p):
-    """The trial line loads (E,S,K,3) N/m (world, (S1)) of the stations at the frames
-    ``R`` (N,3,3), ``p`` (N,3) against the anchors of ``loaded`` (:func:`anchored`) and
-    their Coulomb caps ``mu f_n`` (E,S,K) N/m: a station sticks while its trial is within
-    ``STICK_LIMIT`` of its cap (:func:`simsoft_jax.physics.terms.contact.stick_slip_load`)."""
+def _per_station(loaded, R, p, law):
+    """``law(x (S,3), load (S,K), normals (S,K,3), data)`` of every element's contact
+    stations at the frames ``R`` (N,3,3), ``p`` (N,3), mapped over the elements."""
     s = loaded.structure
     RA, pA, RB, pB = element_poses(loaded, R, p)
     d = jax.vmap(element.relative_twist)(RA, pA, RB, pB)
@@ -72,10 +70,19 @@ def trials(loaded, R, p):
     def one(RA, pA, d, data):
         _, load, normals, _, x = contact.stations(RA, pA, d, data, s.obstacle_kinds,
                                                   s.contact_points)
-        return (contact.stick_slip_trial(x, data.anchor, normals, data.stiffness),
-                data.friction * load)
+        return law(x, load, normals, data)
 
     return jax.vmap(one)(RA, pA, d, contact_data(loaded))
+
+
+def trials(loaded, R, p):
+    """The trial line loads (E,S,K,3) N/m (world, (S1)) of the stations at the frames
+    ``R`` (N,3,3), ``p`` (N,3) against the anchors of ``loaded`` (:func:`anchored`) and
+    their Coulomb caps ``mu f_n`` (E,S,K) N/m: a station sticks while its trial is within
+    ``STICK_LIMIT`` of its cap (:func:`simsoft_jax.physics.terms.contact.stick_slip_load`)."""
+    return _per_station(loaded, R, p, lambda x, load, normals, data: (
+        contact.stick_slip_trial(x, data.anchor, normals, data.stiffness),
+        data.friction * load))
 
 
 def updated(loaded, R, p, t):
@@ -84,14 +91,5 @@ def updated(loaded, R, p, t):
     displacement; None when ``loaded`` holds no anchors."""
     if loaded.friction_anchor is None:
         return None
-    s = loaded.structure
-    RA, pA, RB, pB = element_poses(loaded, R, p)
-    d = jax.vmap(element.relative_twist)(RA, pA, RB, pB)
-
-    def one(RA, pA, d, data):
-        _, load, normals, _, x = contact.stations(RA, pA, d, data, s.obstacle_kinds,
-                                                  s.contact_points)
-        return contact.stick_slip_load(x, data.anchor, load, normals, data.stiffness,
-                                       data.friction)[1]
-
-    return jax.vmap(one)(RA, pA, d, contact_data(loaded)) - _shift(loaded, t)
+    return _per_station(loaded, R, p, lambda x, load, normals, data: contact.stick_slip_load(
+        x, data.anchor, load, normals, data.stiffness, data.friction)[1]) - _shift(loaded, t)
