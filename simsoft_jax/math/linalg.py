@@ -494,6 +494,17 @@ def factorize_coupled(blocks, B, C, D, identity: tuple = ()) -> CoupledFactors:
     return CoupledFactors(chain, B, C, KinvB_o, f_t, perm, order, which)
 
 
+def _schur_solve(chain, schur, B, C, KinvB, x0, b, c, transpose):
+    """``(x, y)`` of :func:`solve_coupled` from ``x0 = K^-1 b`` (or ``K^-T b``), the
+    Schur complement's factors ``schur`` and the border's B (N,6,k), C (k,N,6), KinvB
+    (N,6,k), c (k,)."""
+    if transpose:
+        y = lu_solve(schur, c - jnp.einsum("nja,nj->a", B, x0), True)
+        return solve_factored(chain, b - jnp.einsum("anj,a->nj", C, y), transpose=True), y
+    y = lu_solve(schur, c - jnp.einsum("anj,nj->a", C, x0))
+    return x0 - jnp.einsum("nja,a->nj", KinvB, y), y
+
+
 def solve_coupled(factors: CoupledFactors, b, c, transpose=False):
     """``(x, y)`` solving ``[[K, B], [C, D]] [x; y] = [b; c]`` (or the transposed system
     ``[[K^T, C^T], [B^T, D^T]] [x; y] = [b; c]``) with the factors of
@@ -513,13 +524,8 @@ def solve_coupled(factors: CoupledFactors, b, c, transpose=False):
         return solve_factored(chain, b, transpose), c
     schur, order = (factors.schur_lu, factors.schur_perm), factors.order
     if order is None:
-        x0 = solve_factored(chain, b, transpose)
-        if transpose:
-            y = lu_solve(schur, c - jnp.einsum("nja,nj->a", factors.B, x0), True)
-            return solve_factored(chain, b - jnp.einsum("anj,a->nj", factors.C, y),
-                                  transpose=True), y
-        y = lu_solve(schur, c - jnp.einsum("anj,nj->a", factors.C, x0))
-        return x0 - jnp.einsum("nja,a->nj", factors.KinvB, y), y
+        return _schur_solve(chain, schur, factors.B, factors.C, factors.KinvB,
+                            solve_factored(chain, b, transpose), b, c, transpose)
 
     def solved(k):
         """The solve with the first k unknowns of ``order`` coupled (the others' B
@@ -530,15 +536,9 @@ def solve_coupled(factors: CoupledFactors, b, c, transpose=False):
             x0 = solve_factored(chain, b, transpose)
             if k == 0:
                 return x0, jnp.zeros_like(c).at[later].set(y_later)
-            part = (factors.schur_lu[:k, :k], factors.schur_perm[:k])
-            if transpose:
-                y = lu_solve(part, c[first] - jnp.einsum("nja,nj->a", factors.B[..., first],
-                                                          x0), True)
-                x = solve_factored(chain, b - jnp.einsum("anj,a->nj", factors.C[first], y),
-                                   transpose=True)
-            else:
-                y = lu_solve(part, c[first] - jnp.einsum("anj,nj->a", factors.C[first], x0))
-                x = x0 - jnp.einsum("nja,a->nj", factors.KinvB[..., :k], y)
+            x, y = _schur_solve(chain, (factors.schur_lu[:k, :k], factors.schur_perm[:k]),
+                                factors.B[..., first], factors.C[first],
+                                factors.KinvB[..., :k], x0, b, c[first], transpose)
             return x, jnp.zeros_like(c).at[order].set(jnp.concatenate([y, y_later]))
         return branch
 

@@ -51,7 +51,6 @@ import numpy as np
 
 from ..physics import obstacles
 from ..physics.assembly import rod_end_flags
-from ..math import lie
 
 PARALLEL_SINE = 0.05    # chords at a smaller angle are not tested for passing through
 OVERLAP = 0.5           # chords extended by this fraction where their rod goes on
@@ -206,7 +205,3 @@ def cut_back(model, p0, moved, fraction, rows=None, obstacles_too: bool = True):
 
     return jax.lax.while_loop(cond, lambda c: (0.5 * c[0], c[1] + 1), (fraction, 0))[0]
 
-
-def update_positions(R, p, dx):
-    """Node positions (N,3) of the frames ``H exp(dx)`` (right increments dx (N,6))."""
-    return jax.vmap(lie.compose_exp)(R, p, dx)[1]

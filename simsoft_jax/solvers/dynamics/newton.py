@@ -212,11 +212,12 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
     # no update carries a rod through another rod: cut back (impacts on obstacles are
     # refused by the contact time, :mod:`.contact_time`)
 
-    def positions(w):
-        return swept_check.update_positions(state.R, state.p, w)
-
     def frames(w):
+        """Nodal frames ``(R, p)`` (N,3,3), (N,3) of the increment ``w`` (N,6) (S54)."""
         return jax.vmap(lie.compose_exp)(state.R, state.p, w)
+
+    def positions(w):
+        return frames(w)[1]
 
     w0 = jnp.where(mask > 0, swept_check.cut_back(
         model, state.p, lambda t: positions(jnp.where(mask > 0, t * w0, w0)), 1.0,
