@@ -45,7 +45,6 @@ def initial_frames(rod, R_ref, p_ref):
     return np.einsum("ij,njk->nik", Rb, R), pb + p @ Rb.T
 
 
-
 def chord_started(rod) -> bool:
     """Whether the rod starts from ``initial.points`` without ``initial.rotations``: its
     start rotations are the chord frames of :func:`initial_frames`, which the model
