@@ -514,6 +514,8 @@ def console() -> None:
     inside XLA would otherwise hold the interpreter's exit until it ends, or crash its
     teardown."""
     import os
+    from .pipeline.interrupts import install
+    install()    # a Ctrl-C that lands in a garbage-collector callback is not lost
     try:
         code = main()
     except KeyboardInterrupt:     # outside a command's own handling (an import, a figure)

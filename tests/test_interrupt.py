@@ -164,3 +164,38 @@ def test_ctrl_c_again_stops_writing_a_large_result(tmp_path):
     assert err.strip().splitlines()[-1] == (f"interrupted while writing: {out} not written "
                                             "(the old file, if any, is unchanged)")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["big.json"]
+
+
+GC_CALLBACK_CTRL_C = """
+import gc, signal, sys, time
+from simsoft_jax.pipeline.interrupts import raise_or_defer
+if sys.argv[1] == "raise_or_defer":
+    signal.signal(signal.SIGINT, raise_or_defer)
+armed = [True]
+def callback(phase, info):      # Ctrl-C lands while the collector runs this callback
+    if phase == "start" and armed:
+        armed.clear()
+        signal.raise_signal(signal.SIGINT)
+        sum(range(1000))         # Python code: the handler runs here, inside the callback
+gc.callbacks.append(callback)
+try:
+    gc.collect()
+    time.sleep(2.0)              # a deferred signal arrives during this
+except KeyboardInterrupt:
+    print("raised after the callback")
+else:
+    print("lost")
+"""
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGINT")
+@pytest.mark.parametrize("handler, expected", [("default", "lost"),
+                                               ("raise_or_defer", "raised after the callback")])
+def test_ctrl_c_inside_a_garbage_collector_callback(handler, expected):
+    """Python drops a KeyboardInterrupt raised inside a garbage-collector callback (JAX
+    runs one during its compiles): with its default handler the Ctrl-C is lost; the
+    command line's handler sends it again once the callback has returned."""
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    done = subprocess.run([sys.executable, "-c", GC_CALLBACK_CTRL_C, handler], env=env,
+                          capture_output=True, text=True, timeout=60)
+    assert done.stdout.strip() == expected, done.stderr
