@@ -291,6 +291,13 @@ def _compile(jitted, tree, leaves, name: str, path: Path):
     return compiled
 
 
+def leaf_signature(leaves) -> tuple:
+    """What a compiled program depends on in its argument leaves (arrays or Python
+    scalars): one ``(shape, dtype name, weak type)`` per leaf, hashable."""
+    return tuple((np.shape(x), np.dtype(x.dtype if hasattr(x, "dtype") else type(x)).name,
+                  bool(getattr(x, "weak_type", False))) for x in leaves)
+
+
 def compile_stored(jitted, args: tuple, out_tree, name: str, variant: str = ""):
     """``jitted.lower(*args).compile()`` that later processes load instead of tracing and
     compiling again.
@@ -309,9 +316,7 @@ def compile_stored(jitted, args: tuple, out_tree, name: str, variant: str = ""):
         with announced(name, kept=False):
             return jitted.lower(*args).compile()
     leaves, tree = jax.tree_util.tree_flatten(args)
-    signature = repr((name, variant, tree, [
-        (np.shape(x), str(x.dtype if hasattr(x, "dtype") else np.result_type(x)),
-         bool(getattr(x, "weak_type", False))) for x in leaves]))
+    signature = repr((name, variant, tree, leaf_signature(leaves)))
     key = hashlib.sha256((signature + _source_key()).encode()).hexdigest()[:40]
     path = Path(folder) / "programs" / f"{name.replace(' ', '_')}-{key}.xla"
     compiled = _load(path, leaves, out_tree.num_leaves, name)

@@ -269,10 +269,7 @@ def stored_backward(programs: Programs, perturbed: Perturbed, args):
     compiled)."""
     from ..programs import PROGRAMS    # it imports the dynamics
     leaves, tree = jax.tree_util.tree_flatten(args)
-    key = ("rollout gradient", programs, perturbed, tree,
-           tuple((np.shape(x), x.dtype if hasattr(x, "dtype") else np.result_type(x),
-                  bool(getattr(x, "weak_type", False)))
-                 for x in leaves))
+    key = ("rollout gradient", programs, perturbed, tree, compile_cache.leaf_signature(leaves))
     if key not in PROGRAMS:
         model, settings, state = args[:3]
         floats, _, cotangent = differentiated((model, settings),

@@ -421,9 +421,7 @@ def stored_static_gradient(tangent: str, perturbed: tuple, args):
     on stderr when compiled). Call it as ``program(eq, model, bar)``."""
     from ..programs import PROGRAMS   # it imports this package
     leaves, tree = jax.tree_util.tree_flatten(args)
-    key = ("static gradient", tangent, perturbed, tree,
-           tuple((np.shape(x), np.result_type(x).name, bool(getattr(x, "weak_type", False)))
-                 for x in leaves))
+    key = ("static gradient", tangent, perturbed, tree, compile_cache.leaf_signature(leaves))
     if key not in PROGRAMS:
         def static_gradient(eq, model, bar):
             return static_cotangent(eq, model, bar, tangent, perturbed)
