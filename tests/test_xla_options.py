@@ -2,6 +2,7 @@
 (when this jaxlib accepts them) and give the same numbers as a plain ``jax.jit``."""
 import jax
 import numpy as np
+import pytest
 
 import simsoft_jax as sj
 from simsoft_jax.math import xla
@@ -47,3 +48,16 @@ def test_a_program_without_loop_invariant_motion_gives_the_same_numbers():
     ours = xla.jit(f, loop_invariant_motion=False)
     assert ours.lower(1.3).compile() is not None
     np.testing.assert_allclose(float(ours(1.3)), 45.0 * np.sin(1.3), rtol=1e-15)
+
+
+def test_products_compile_without_library_fusions_where_xla_makes_them():
+    """A 66 x 66 product (the size of a rod-pair border block) that XLA hands to its
+    YNNPACK library by default compiles to XLA's own code under the package's options;
+    the numbers are the same."""
+    a = np.random.default_rng(0).standard_normal((66, 66))
+    plain = jax.jit(lambda m: m @ m).lower(a).compile()
+    if "__ynn_fusion" not in plain.as_text():
+        pytest.skip("this jaxlib makes no YNNPACK fusion of the product")
+    ours = xla.jit(lambda m: m @ m).lower(a).compile()
+    assert "__ynn_fusion" not in ours.as_text()
+    np.testing.assert_allclose(np.asarray(ours(a)), a @ a, rtol=1e-13, atol=1e-12)

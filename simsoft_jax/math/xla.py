@@ -14,8 +14,14 @@ into several for parallel compilation (``xla_cpu_parallel_codegen_split_count=1`
 each part pays the module's set-up again, and the solver programs' compile CPU time
 falls 10-17 % (static solver 3.1 -> 2.8 s, rollout 4.4 -> 4.0 s, rollout gradient
 5.2 -> 4.4 s; wall time lower too on 2 cores), run times unchanged (benchmarks/README.md,
-"`first_answer`"). These are CPU debug options (ignored by other backends); when the
-installed jaxlib does not know them, plain ``jax.jit`` is used.
+"`first_answer`"). It compiles no YNNPACK library fusions
+(``xla_cpu_experimental_ynn_fusion_type`` empty): by default XLA hands some dot products
+and reductions to that library, whose calls cost more than the small products here
+(cosseratbench pile: 4.8 -> 4.1 ms of CPU per Newton iteration, the timed run 19.4-20.8
+-> 16.8 s; Princeton static, helical rollouts and a vmapped Princeton sweep equal or up
+to 15 % faster; benchmarks/README.md, "XLA's library fusions"). These are CPU debug
+options (ignored by other backends); those the installed jaxlib does not know are left
+out (with none known, plain ``jax.jit`` is used).
 
 ``jit(..., optimization_level=1)`` compiles with LLVM's O1 pipeline instead of its
 default: for the gradient programs (the implicit derivative of a static solve, the
@@ -40,22 +46,30 @@ import os
 import jax
 import numpy as np
 
-_CANDIDATE = {"xla_cpu_use_fusion_emitters": False, "xla_cpu_multi_thread_eigen": False,
-              "xla_cpu_parallel_codegen_split_count": 1}
+CANDIDATE_OPTIONS = {"xla_cpu_use_fusion_emitters": False, "xla_cpu_multi_thread_eigen": False,
+                     "xla_cpu_parallel_codegen_split_count": 1,
+                     "xla_cpu_experimental_ynn_fusion_type": ""}
 _NO_LOOP_INVARIANT_MOTION = {"xla_disable_hlo_passes": "while-loop-invariant-code-motion"}
 _OPTIONS: dict | None = None
 
 
+def accepted(options: dict) -> bool:
+    """Whether this jax and jaxlib compile a trivial function with ``options``."""
+    try:
+        jax.jit(lambda x: x + 1.0, compiler_options=options).lower(1.0).compile()
+        return True
+    except Exception:  # unknown option or no ``compiler_options`` in this jax
+        return False
+
+
 def compiler_options() -> dict:
-    """The compile options used by :func:`jit` (empty when this jaxlib rejects them);
-    decided once per process by compiling a trivial function."""
+    """The compile options used by :func:`jit`: those of the candidates this jaxlib
+    accepts (all of them, or else each tried alone); decided once per process by
+    compiling a trivial function."""
     global _OPTIONS
     if _OPTIONS is None:
-        try:
-            jax.jit(lambda x: x + 1.0, compiler_options=_CANDIDATE).lower(1.0).compile()
-            _OPTIONS = dict(_CANDIDATE)
-        except Exception:  # unknown option or no ``compiler_options`` in this jax
-            _OPTIONS = {}
+        _OPTIONS = (dict(CANDIDATE_OPTIONS) if accepted(CANDIDATE_OPTIONS) else
+                    {k: v for k, v in CANDIDATE_OPTIONS.items() if accepted({k: v})})
     return _OPTIONS
 
 

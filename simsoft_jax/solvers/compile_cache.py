@@ -134,7 +134,7 @@ def _source_key() -> str:
     device = jax.devices()[0]
     digest = hashlib.sha256(repr((
         jax.__version__, jaxlib.__version__, device.platform, device.client.platform_version,
-        device.device_kind, sorted(xla._CANDIDATE.items()),
+        device.device_kind, sorted(xla.CANDIDATE_OPTIONS.items()),
         os.environ.get("XLA_FLAGS", ""), platform.machine(), _cpu_flags())).encode())
     for path in sorted(root.rglob("*.py")):
         digest.update(str(path.relative_to(root)).encode() + path.read_bytes())
