@@ -167,6 +167,11 @@ def time_scaled(model, lam, v0=None):
                          v0=v0 / lam)
 
 
+# the start state compiled, one program per structure (eagerly, each of its operations
+# compiles on its own: about two hundred small programs)
+initial_state = jax.jit(dy.initial_state)
+
+
 def rollout(model, settings, state, calls, lam=1.0):
     """``calls`` chained rollouts; returns physical time (T,), R, p, body velocities v of
     every saved state (the start included) and the final State (scaled units)."""
@@ -268,7 +273,7 @@ def test_free_planar_rotation_follows_stretched_steady_state(material, omega0):
     R0, p0, v0, xi = stretched_steady_state(material, omega0)
     model = model.replace(R0=jnp.asarray(R0), p0=jnp.asarray(p0), v0=jnp.asarray(v0))
     # consistent accelerations (S67) of the exact state are ~0 compared with w^2 L
-    vd_consistent = np.asarray(dy.initial_state(model).vd)
+    vd_consistent = np.asarray(initial_state(model).vd)
     assert np.abs(vd_consistent).max() < 1e-4 * omega0**2 * L_FREE
 
     zero = jnp.zeros((N_FREE + 1, 6))
@@ -331,7 +336,7 @@ def test_momentum_of_free_rod_after_force_pulse(inertia, material):
     drifts = []
     for lam in (1.0, 2.0):
         m = time_scaled(model, lam)
-        state = dy.initial_state(m)
+        state = initial_state(m)
         t, R, p, v, _ = rollout(m, SETTINGS_FREE, state, calls=int(2 * lam), lam=lam)
         P, Lang = chain.momentum(R, p, v)
         i_end = int(np.argmin(np.abs(t - 0.1)))
@@ -428,7 +433,7 @@ def test_second_order_convergence_nonlinear_free_vibration(cantilever, rho_inf):
     finals = {}
     for lam in (4, 8, 16, 256):
         m = time_scaled(undamped(model), lam, v0)
-        state = dy.initial_state(m)
+        state = initial_state(m)
         t, R, p, _, _ = rollout(m, settings_cant(rho_inf), state,
                                 calls=int(round(lam / (DT_CANT * STEPS_CANT))), lam=lam)
         assert t[-1] == pytest.approx(1.0)
@@ -449,7 +454,7 @@ def test_energy_conserved_rho_inf_one(cantilever):
     v0 = large_velocity(cantilever)
     lam = 4  # dt = 0.04 / 4 = 0.01 s
     m = time_scaled(undamped(model), lam, v0)
-    state = dy.initial_state(m)
+    state = initial_state(m)
     _, R, p, v, _ = rollout(m, settings_cant(1.0), state, calls=400, lam=lam)
     assert len(R) == 10**4 + 1
     energy = chain.energy(R, p, v)
@@ -475,7 +480,7 @@ def test_numerical_dissipation_matches_linear_generalized_alpha(cantilever, mode
     wh = omega[k] * DT_CANT / lam
     v0 = 1e-5 * shapes[k] / np.abs(shapes[k]).max()
     m = time_scaled(undamped(model), lam, v0)
-    state = dy.initial_state(m)
+    state = initial_state(m)
     calls = 1 if mode == "highest" else 4
     _, R, p, v, _ = rollout(m, settings_cant(0.8), state, calls=calls, lam=lam)
     energy = chain.energy(R, p, v)
@@ -505,7 +510,7 @@ def test_viscous_energy_decays_monotonically_and_balances_dissipation(cantilever
     model, chain, _, _ = cantilever
     v0 = large_velocity(cantilever)
     model = model.replace(v0=jnp.asarray(v0))
-    state = dy.initial_state(model)
+    state = initial_state(model)
     t, R, p, v, _ = rollout(model, SETTINGS_VISC, state, calls=2)
     energy = chain.energy(R, p, v)
     steps = np.diff(energy)

@@ -70,9 +70,10 @@ def test_magnetic_elastica_converges_to_the_shooting_solution(magnet_model):
     assert 3.0 < errors[0] / errors[1] < 5.0     # second order in the element length
 
 
-def test_magnetic_static_solves_agree_on_both_tangent_paths():
-    scene = magnetic_scene(8)
-    eqs = [sj.solve_static(sj.build_model(scene), SETTINGS.replace(tangent=t))
+def test_magnetic_static_solves_agree_on_both_tangent_paths(magnet_model):
+    """The elastica's model: its closed-form solve is the program the test above compiled
+    already, only the autodiff path compiles here."""
+    eqs = [sj.solve_static(magnet_model, SETTINGS.replace(tangent=t))
            for t in ("closed_form", "autodiff")]
     np.testing.assert_allclose(eqs[0].p, eqs[1].p, rtol=0, atol=1e-11)
 

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import simsoft_jax as sj
+from conftest import iteration_matrices
 from simsoft_jax.physics import assembly
 from simsoft_jax.math import lie
 from simsoft_jax.physics.terms import element_state, point_in_element
@@ -85,11 +86,14 @@ def deformed_element():
     return RA, pA, RB, pB
 
 
-def test_dead_force_is_the_gradient_of_its_potential():
+@jax.jit
+def dead_force_and_potential_gradient(force, xi):
+    """The point-load term of a dead ``force`` (3,) at ``xi`` on :func:`deformed_element`
+    and the gradient (12,) of its potential ``F . p(xi)`` over the end nodes' chart
+    increments by ``jax.jacfwd``, as one compiled program (eagerly, each of their
+    operations compiles on its own: about two hundred small programs)."""
     RA, pA, RB, pB = deformed_element()
-    force, xi = jnp.array([0.3, -1.2, 0.7]), 0.37
-    data = point_in_element.ElementPointLoad(jnp.concatenate([force, jnp.zeros(3)]), None,
-                                             jnp.asarray(xi))
+    data = point_in_element.ElementPointLoad(jnp.concatenate([force, jnp.zeros(3)]), None, xi)
 
     def potential(y):
         RA1, pA1 = lie.compose_exp(RA, pA, y[:6])
@@ -98,9 +102,14 @@ def test_dead_force_is_the_gradient_of_its_potential():
         p_xi = pA1 + RA1 @ lie.exp_se3(xi * d)[:3, 3]
         return force @ p_xi
 
-    gradient = jax.jacfwd(potential)(jnp.zeros(12))
     zero = jnp.zeros(12)
     term = point_in_element.force(element_state(RA, pA, RB, pB, zero, zero), data, 1.0)
+    return term, jax.jacfwd(potential)(zero)
+
+
+def test_dead_force_is_the_gradient_of_its_potential():
+    term, gradient = dead_force_and_potential_gradient(jnp.array([0.3, -1.2, 0.7]),
+                                                       jnp.asarray(0.37))
     assert jnp.max(jnp.abs(term + gradient)) < 1e-12 * jnp.max(jnp.abs(gradient))
 
 
@@ -157,28 +166,17 @@ def test_a_time_law_scales_a_load_inside_an_element():
 
 def test_dynamic_iteration_matrix_paths_agree():
     """``M beta' + C gamma' + K T(w)`` of both tangent paths, with dead and follower point
-    loads inside an element (one on a ramp)."""
-    from simsoft_jax.math import linalg
+    loads inside an element (one on a ramp), by :func:`conftest.iteration_matrices` (one
+    compiled program per path)."""
     from simsoft_jax.model import loads
-    from simsoft_jax.solvers.dynamics import element_inertia
-    from simsoft_jax.solvers.dynamics.residual import residual_and_iteration_matrix
-    from simsoft_jax.solvers.dynamics.scheme import iteration_factors
     point = [{"kind": "force", "rod": "arm", "s": 0.3, "vector": [0.2, 5.0, -3.0]},
              {"kind": "moment", "rod": "arm", "s": 0.3, "vector": [0.3, -0.4, 0.2],
               "frame": "local", "profile": {"kind": "ramp", "t0": 0.0, "t1": 1.0}}]
     model = loads.loads_at(sj.build_model(sj.Scene.from_dict(scene_with(point, "dynamic"))),
                            0.5)
-    rng = np.random.default_rng(4)
+    rng = np.random.default_rng(5)
     R, p = jax.vmap(lie.compose_exp)(model.R0, model.p0,
                                      jnp.asarray(0.05 * rng.standard_normal((3, 6))))
-    v, vd, w = (jnp.asarray(0.3 * rng.standard_normal((3, 6))) for _ in range(3))
-    beta_p, gamma_p = iteration_factors(0.8, 0.01)
-    inert = element_inertia(model)
-    out = [residual_and_iteration_matrix(model, inert, R, p, v, vd, w, beta_p, gamma_p,
-                                         None, tangent)
-           for tangent in ("closed_form", "autodiff")]
-    (r1, b1), (r2, b2) = out
-    S1, S2 = np.asarray(linalg.dense(b1)), np.asarray(linalg.dense(b2))
-    np.testing.assert_allclose(np.asarray(r1), np.asarray(r2), rtol=0,
-                               atol=1e-13 * np.abs(np.asarray(r2)).max())
+    (r1, S1), (r2, S2) = iteration_matrices(model, R, p)
+    np.testing.assert_allclose(r1, r2, rtol=0, atol=1e-13 * np.abs(r2).max())
     np.testing.assert_allclose(S1, S2, rtol=0, atol=1e-10 * np.abs(S1).max())

@@ -144,25 +144,32 @@ def test_gradients_through_rod_contact_match_finite_differences(model):
     np.testing.assert_allclose(jac[0, 0] - jac[1, 0], delta / 2, rtol=5e-3)
 
 
-@pytest.mark.slow
 def test_more_pairs_than_max_pairs_stop_the_static_solve_with_a_status_naming_it(model,
                                                                                   solved):
-    """The crossing rods start within contact reach at their middle nodes, where the two
-    elements of one rod meeting there face the two of the other: 4 element pairs. With
-    ``max_pairs = 1`` every load level fails on the overflow, so the continuation stops
-    at load level 0 with the cause ``contact_pairs`` (not ``nonfinite``) and a message
-    naming ``[contact] max_pairs``, keeping the last converged state (the start). With
-    the 4 pairs the same solve converges with the top rod resting on the bottom one:
+    """The crossing rods meet at their middle nodes, where the two elements of one rod
+    meeting there face the two of the other: 4 element pairs, ``max_pairs``. With the
+    bottom rod turned under the top one, parallel to it (same depth), each top element
+    faces two or three bottom ones, more pairs than 4: every load level fails on the
+    overflow, so the continuation stops at load level 0 with the cause ``contact_pairs``
+    (not ``nonfinite``) and a message naming ``[contact] max_pairs``, keeping the last
+    converged state (the start). The structure is the crossing's (``max_pairs`` is part
+    of a structure), so the solve is the program compiled for it. With the 4 pairs of
+    the crossing the same solve converges with the top rod resting on the bottom one:
     their middles a sum of radii apart, less a penetration within the penalty's
     smoothing width."""
-    few = model.replace(structure=dataclasses.replace(model.structure, contact_pairs=1))
-    eq = statics.solve_static(few)
+    rods = {rod.name: rod for rod in model.structure.rods}
+    top, bottom = (slice(rods[n].first_node, rods[n].first_node + rods[n].nodes)
+                   for n in ("top", "bottom"))
+    p0, R0 = np.array(model.p0), np.array(model.R0)
+    p0[bottom], R0[bottom] = p0[top] - [0.0, 0.0, 2 * R_C - EPS], R0[top]
+    parallel = model.replace(p0=p0, R0=R0)
+    eq = statics.solve_static(parallel)
     assert not bool(eq.converged)
     assert sj.Status(int(eq.status)) == sj.Status.STEP_TOO_SMALL
     assert sj.Status(int(eq.cause)) == sj.Status.CONTACT_PAIRS
     assert "[contact] max_pairs" in eq.message()
     assert float(eq.load_level) == 0.0
-    np.testing.assert_array_equal(eq.p, model.p0)
+    np.testing.assert_array_equal(eq.p, p0)
     gap = float(solved.p[TOP_MID, 2] - solved.p[BOTTOM_MID, 2])
     assert 2 * R_C - EPS < gap < 2 * R_C
 
@@ -272,21 +279,24 @@ def test_tracked_pairs_hold_every_pair_within_their_motion():
         assert not pairs.overflow
         return {(int(e), int(f)) for e, f, on in zip(pairs.e, pairs.f, pairs.active) if on}
 
+    # each function compiled (eagerly, each of its operations compiles on its own)
+    find_pairs, refresh = jax.jit(rod_pairs.find_pairs), jax.jit(rod_pairs.refresh)
     tracked = jax.jit(rod_pairs.track)(model, R, lifted, 1.01 * h)
     back = jnp.asarray(p)
-    touching = pair_set(jax.jit(rod_pairs.find_pairs)(model, R, back))
+    touching = pair_set(find_pairs(model, R, back, 0.0))
     between_legs = {(e, f) for e, f in touching if e < n_leg <= f - 2}
     assert len(between_legs) >= n_leg - 2                     # the legs touch again
     assert touching <= pair_set(tracked.pairs)
-    assert not between_legs & pair_set(jax.jit(rod_pairs.find_pairs)(model, R, lifted))
-    np.testing.assert_allclose(rod_pairs.moved(model, tracked, R, back), h, rtol=1e-12)
-    kept = jax.jit(rod_pairs.refresh)(model, tracked, R, back)
+    assert not between_legs & pair_set(find_pairs(model, R, lifted, 0.0))
+    np.testing.assert_allclose(jax.jit(rod_pairs.moved)(model, tracked, R, back), h,
+                               rtol=1e-12)
+    kept = refresh(model, tracked, R, back)
     assert pair_set(kept.pairs) == pair_set(tracked.pairs)
     np.testing.assert_array_equal(kept.stations, tracked.stations)
     lower = jnp.asarray(p - np.outer(upper, [0.0, 0.0, h]))
-    again = jax.jit(rod_pairs.refresh)(model, tracked, R, lower)
-    assert pair_set(again.pairs) == pair_set(rod_pairs.find_pairs(model, R, lower, 1.01 * h))
-    np.testing.assert_allclose(again.stations, rod_pairs.stations(model, R, lower))
+    again = refresh(model, tracked, R, lower)
+    assert pair_set(again.pairs) == pair_set(find_pairs(model, R, lower, 1.01 * h))
+    np.testing.assert_allclose(again.stations, jax.jit(rod_pairs.stations)(model, R, lower))
 
 
 def test_dynamic_rod_contact_with_a_sliding_drive_or_a_displaced_tendon_is_read():

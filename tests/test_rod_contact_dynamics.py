@@ -93,17 +93,23 @@ def test_rod_contact_forces_are_equal_and_opposite_at_every_time(collision):
     assert top[:, 2].max() == pytest.approx(scale)       # the bottom rod pushes the top up
 
 
-def test_more_pairs_than_max_pairs_end_the_run_with_a_status_naming_it():
-    """The crossing rods start within contact reach of each other at their middle nodes,
-    where the two elements of one rod meeting there face the two of the other: 4 element
-    pairs. With ``max_pairs = 1`` the run stops at its first step with the status
-    ``contact_pairs`` (as the cause of the step halved below its minimum) and a message
-    naming ``[contact] max_pairs``; the states kept are finite."""
-    scene = {**SCENE, "solver": {**SCENE["solver"], "t_end": 0.02},
-             "contact": {**SCENE["contact"], "max_pairs": 1}}
-    result = sj.run(scene)
-    assert not result.converged
-    assert sj.Status.CONTACT_PAIRS in (sj.Status(int(result.raw.status)),
-                                       sj.Status(int(result.raw.cause)))
-    assert "[contact] max_pairs" in result.message
-    assert np.all(np.isfinite(result._p))
+def test_more_pairs_than_max_pairs_end_the_run_with_a_status_naming_it(collision):
+    """The collision's model (``max_pairs = 4``) with the bottom rod turned under the top
+    one, parallel to it, 1 mm short of touching as in the collision: each top element
+    faces two or three bottom ones, far more element pairs than 4. The run stops at its
+    first step with the status ``contact_pairs`` (as the cause of the step halved below its
+    minimum) and a message naming ``[contact] max_pairs``; the states kept are finite.
+    The structure is the collision's, so the rollout is the program compiled for it
+    (``max_pairs`` is part of a structure: a scene of its own would compile another)."""
+    model = collision.model
+    rods = {rod.name: rod for rod in model.structure.rods}
+    top, bottom = (slice(rods[n].first_node, rods[n].first_node + rods[n].nodes)
+                   for n in ("top", "bottom"))
+    p0, R0 = np.array(model.p0), np.array(model.R0)
+    p0[bottom], R0[bottom] = p0[top] - [0.0, 0.0, 2 * R_C + 1e-3], R0[top]
+    run = sj.simulate(model.replace(p0=p0, R0=R0),
+                      sj.DynamicSettings(dt=0.01, steps=2, rho_inf=1.0))
+    assert not bool(np.all(run.converged))
+    assert sj.Status.CONTACT_PAIRS in (sj.Status(int(run.status)), sj.Status(int(run.cause)))
+    assert "[contact] max_pairs" in run.message()
+    assert np.all(np.isfinite(run.p))

@@ -25,6 +25,11 @@ from simsoft_jax.model.loads import full_loads
 L, EI, ELEMENTS = 1.0, 1.0, 24
 P_CR = np.pi**2 * EI / (4 * L**2)
 
+# compiled, one program per structure (eagerly, each of their operations compiles on its
+# own: about two hundred small programs)
+negative_eigenvalues = jax.jit(stability.negative_eigenvalues)
+full_tangent = jax.jit(lambda model, R, p: residual_and_tangent(full_loads(model), R, p, 1.0)[1])
+
 
 def column(P, elements=ELEMENTS):
     stiff = {"EA": 1e5, "GAy": 1e5, "GAz": 1e5, "GJ": 1.0, "EIy": EI, "EIz": EI}
@@ -39,7 +44,7 @@ def column(P, elements=ELEMENTS):
 
 def dense_count(model, eq):
     """Negative eigenvalues of the dense symmetric constrained tangent (numpy)."""
-    _, (diag, upper, lower) = residual_and_tangent(full_loads(model), eq.R, eq.p, 1.0)
+    diag, upper, lower = map(np.asarray, full_tangent(model, eq.R, eq.p))
     n = diag.shape[0]
     K = np.zeros((6 * n, 6 * n))
     for i in range(n):
@@ -56,7 +61,7 @@ def test_euler_column_counts_buckling_modes(factor, expected):
     assert result.converged
     tip = result.positions("c")[-1]
     assert abs(tip[1]) < 1e-12 and abs(tip[2]) < 1e-12      # still straight
-    n = int(stability.negative_eigenvalues(result.model, result.raw))
+    n = int(negative_eigenvalues(result.model, result.raw))
     assert n == expected
     assert dense_count(result.model, result.raw) == expected
     assert result.stability == {"negative_eigenvalues": expected, "stable": expected == 0}
@@ -65,7 +70,7 @@ def test_euler_column_counts_buckling_modes(factor, expected):
 
 def test_discrete_critical_load_within_one_percent():
     """The count switches from 0 to 2 between 0.99 and 1.01 P_cr (24 elements)."""
-    counts = [int(stability.negative_eigenvalues(r.model, r.raw)) for r in
+    counts = [int(negative_eigenvalues(r.model, r.raw)) for r in
               (sj.run(column(f * P_CR)) for f in (0.99, 1.01))]
     assert counts == [0, 2]
 
@@ -107,9 +112,9 @@ def test_kept_tangent_is_the_tangent_at_the_equilibrium(factor):
     eq = jax.jit(lambda m: sj.statics.equilibrium(m, sj.statics.as_traced(settings),
                                                   keep_tangent=True))(model)
     assert bool(eq.converged)
-    _, fresh = residual_and_tangent(full_loads(model), eq.R, eq.p, 1.0)
+    fresh = full_tangent(model, eq.R, eq.p)
     for kept, new in zip(eq.tangent, fresh):
         scale = np.max(np.abs(np.asarray(new)))
         np.testing.assert_allclose(np.asarray(kept), np.asarray(new), rtol=0, atol=1e-12 * scale)
-    assert int(stability.negative_eigenvalues(model, eq, eq.tangent)) == \
-        dense_count(model, eq) == int(stability.negative_eigenvalues(model, eq))
+    assert int(negative_eigenvalues(model, eq, eq.tangent)) == \
+        dense_count(model, eq) == int(negative_eigenvalues(model, eq))
