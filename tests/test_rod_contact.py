@@ -382,3 +382,67 @@ def test_broad_phase_candidates_match_brute_force_whether_or_not_the_finer_tests
                 and (a + b) % 3 != 0
                 and not (rod_of[a] == rod_of[b] and s0[b] - s0[a] - 0.01 < 0.015)}
     assert found == expected and len(found) > n // 2
+
+
+def test_pair_tangents_with_few_touching_among_many_candidates_equal_forward_mode():
+    """A hairpin of 8-element legs tracked with a motion allowance of half an element
+    length (many candidate pairs, of which only those within 2 r touch), its upper leg
+    tilted up from the bend by several slopes so that 12, 6, 4 or no pairs touch:
+    the rod-rod tangent of :func:`rod_pairs.system` (pairs' blocks inside the chains
+    plus the border ``U W U^T``, however many pair tangents it forms) equals
+    ``jax.jacfwd`` of :func:`rod_pairs.residual` on the same pairs at the frames
+    ``H exp(y)`` (``lie.compose_exp_quadratic``, the chart of the pair terms)."""
+    from simsoft_jax.math import lie, linalg
+    from simsoft_jax.physics.assembly import rod_end_flags
+    n_leg, h = 8, 0.01
+    R, p = _hairpin(n_leg, h)
+    E = len(p) - 1
+    model = build_model(Scene.from_dict({
+        "solver": {"kind": "static"},
+        "rods": [{"name": "hairpin", "elements": E,
+                  "geometry": {"kind": "straight", "length": E * h},
+                  "stiffness": {"EA": 1.0, "GAy": 1.0, "GAz": 1.0, "GJ": 1.0, "EIy": 1.0,
+                                "EIz": 1.0},
+                  "inertia": {"rhoA": 1.0, "rhoJ": 1.0, "rhoIy": 1.0, "rhoIz": 1.0}}],
+        "contact": {"radius": 0.75 * h, "self": True, "max_pairs": 32,
+                    "quadrature_points": 2}}))
+    n = len(p)
+    radius, stiffness, length = (jnp.asarray(a) for a in (
+        model.contact_radius, model.contact_stiffness, model.length))
+    ends = jnp.asarray(rod_end_flags(model.structure))
+    zero = tuple(jnp.zeros((k, 6, 6)) for k in (n, n - 1, n - 1))
+
+    @jax.jit
+    def parts(R, p):
+        pairs = rod_pairs.track(model, R, p, 0.5 * h).pairs
+        _, blocks, c = rod_pairs.system(model, R, p, jnp.zeros((n, 6)), zero, pairs=pairs)
+        U = c.B.reshape(6 * n, -1)
+        K = linalg.dense(blocks) + U @ jnp.einsum("anj,njb->ab", c.C, c.B) @ U.T
+
+        def residual(y):
+            Ry, py = jax.vmap(lie.compose_exp_quadratic)(R, p, y.reshape(n, 6))
+            return rod_pairs.residual(model, Ry, py, pairs=pairs).reshape(-1)
+
+        g = rod_pairs.residual(model, R, p, pairs=pairs)
+
+        def touches(e, f, nodes):   # a nonzero pair residual
+            ef = jnp.stack([e, f])
+            return jnp.any(rod_contact.pair_residual(
+                (R[nodes], p[nodes]), radius[ef], stiffness[ef], length[ef], ends[ef], 2) != 0)
+
+        touching = jnp.sum(jax.vmap(touches)(pairs.e, pairs.f, pairs.nodes) & pairs.active)
+        return K, jax.jacfwd(residual)(jnp.zeros(6 * n)), jnp.sum(pairs.active), touching, g
+
+    upper = p[:, 2] > 0.75 * h
+    counts = set()
+    for slope in (0.0, 0.012, 0.022, 1.0):
+        lifted = p + np.outer(upper, [0.0, 0.0, 1.0]) * slope * np.maximum(
+            n_leg * h - p[:, 0], 0.0)[:, None]
+        K, reference, candidates, touching, g = parts(jnp.asarray(R), jnp.asarray(lifted))
+        assert bool(jnp.all(jnp.isfinite(g)))
+        counts.add(int(touching))
+        assert int(candidates) > int(touching)
+        np.testing.assert_allclose(K, reference, rtol=0, atol=1e-10 * float(
+            jnp.abs(reference).max()) + 1e-300)
+    # the branches: no pair tangent, 4 of them, 16
+    assert 0 in counts and any(0 < c <= 4 for c in counts) and 8 < max(counts) <= 16

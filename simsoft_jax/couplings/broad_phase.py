@@ -85,15 +85,17 @@ def candidate_pairs(centre, radius, near_pair, rod_of, s_start, s_end, exclusion
     e, f = e.reshape(-1), f.reshape(-1)
     bound = NEAR_TESTS * n
 
-    def few():   # the finer test on the (at most ``bound``) pairs of overlapping spheres
+    def few():   # the finer test on the (at most ``bound``) pairs of overlapping spheres,
+        # compacted in their order: the kept ones are the first of them that pass
         index = jnp.nonzero(spheres, size=bound, fill_value=0)[0]
         near = near_pair(e[index], f[index]) & (jnp.arange(bound) < jnp.sum(spheres))
-        return jnp.zeros_like(spheres).at[index].max(near)
+        return jnp.sum(near), index[jnp.nonzero(near, size=capacity, fill_value=0)[0]]
 
-    keep = jax.lax.cond(jnp.sum(spheres) <= bound, few,
-                        lambda: spheres & near_pair(e, f))
-    count = jnp.sum(keep)
-    index = jnp.nonzero(keep, size=capacity, fill_value=0)[0]
+    def every():
+        keep = spheres & near_pair(e, f)
+        return jnp.sum(keep), jnp.nonzero(keep, size=capacity, fill_value=0)[0]
+
+    count, index = jax.lax.cond(jnp.sum(spheres) <= bound, few, every)
     active = jnp.arange(capacity) < count
     e = jnp.where(active, e[index], 0)
     f = jnp.where(active, f[index], 0)

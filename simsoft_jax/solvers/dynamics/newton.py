@@ -102,7 +102,9 @@ class _NewtonCarry(NamedTuple):
     and multipliers the last fresh correction started from (base, base_mu), its merit
     there (base_merit), that correction (step (N,6), step_mu (M,)) and the fraction of
     it applied (0: no correction on trial); halvings: the fresh corrections halved so far
-    (stick-slip friction)."""
+    (stick-slip friction); trials: the stick-slip stations' trial line loads and caps at w
+    (:func:`~simsoft_jax.physics.stick_slip.trials`, for :func:`reversal_cut`; None without
+    stick-slip friction)."""
     w: jax.Array
     iterations: jax.Array
     status: jax.Array
@@ -121,6 +123,7 @@ class _NewtonCarry(NamedTuple):
     step_mu: jax.Array = None
     fraction: jax.Array = None
     halvings: jax.Array = None
+    trials: tuple = None
 
 
 class StepResult(NamedTuple):
@@ -134,16 +137,16 @@ class StepResult(NamedTuple):
     memory: NewtonMemory
 
 
-def reversal_cut(loaded, start, end):
-    """The fraction (scalar) of a Newton correction from the frames ``start`` to ``end``
-    ((R (N,3,3), p (N,3)) each) at which no stick-slip station that slides at both ends
-    with opposite trial line loads (S1) has passed its point nearest to its anchor (on the
-    straight path between its two trials): 1 when none reverses. Such a correction was
-    made with the station's saturated slope along its slip (g' ~ 0 in (S2)) while the
-    solution sticks; cut there, the next iterate has it sticking, where the slope is its
-    spring's."""
-    t0, c0 = stick_slip.trials(loaded, *start)
-    t1, c1 = stick_slip.trials(loaded, *end)
+def reversal_cut(start, end):
+    """The fraction (scalar) of a Newton correction at which no stick-slip station that
+    slides at both its ends with opposite trial line loads (S1) has passed its point
+    nearest to its anchor (on the straight path between its two trials): 1 when none
+    reverses. ``start``, ``end``: the stations' trial line loads (E,S,K,3) N/m and caps
+    (E,S,K) N/m at the correction's two ends (:func:`~simsoft_jax.physics.stick_slip.trials`).
+    Such a correction was made with the station's saturated slope along its slip (g' ~ 0
+    in (S2)) while the solution sticks; cut there, the next iterate has it sticking, where
+    the slope is its spring's."""
+    (t0, c0), (t1, c1) = start, end
     n0 = jnp.sqrt(jnp.sum(t0**2, -1))
     n1 = jnp.sqrt(jnp.sum(t1**2, -1))
     dt = t1 - t0
@@ -278,7 +281,8 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
         dw, dmu = fraction * dw, fraction * dmu
         halvings = c.halvings
         if damped:   # no station's sliding direction reversed by a correction
-            turn = reversal_cut(fns.loaded, frames(c.w), frames(c.w + dw))
+            ends = stick_slip.trials(fns.loaded, *frames(c.w + dw))
+            turn = reversal_cut(c.trials, ends)
             dw, dmu, fraction = turn * dw, turn * dmu, turn * fraction
         size = full = step_norm(model, dw)
         if damped:   # a fresh correction no smaller than the last full one, not cut, is halved
@@ -308,10 +312,20 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
                                      Status.MAX_ITERATIONS)))
         trial = c.fresh & ~keep
         half = 0.5 * c.fraction
+        w_next = jnp.where(back, c.base + half * c.step, w_new)
+        trials = None
+        if damped:   # at w_next: those at the correction's end where it was applied whole
+            stay, whole = ~back & keep, ~back & ~keep & (turn == 1.0) & ~halve
+            kept = select(stay, c.trials, ends)
+            again = ~stay & ~whole
+            trials = jax.lax.cond(
+                any_lane(again),
+                lambda w: select(again, stick_slip.trials(fns.loaded, *frames(w)), kept),
+                lambda _: kept, w_next)
         limit = jnp.where(c.iterations + 1 >= settings.max_iterations, Status.MAX_ITERATIONS,
                           RUNNING)
         return _NewtonCarry(
-            jnp.where(back, c.base + half * c.step, w_new),
+            w_next,
             c.iterations + 1, jnp.where(back, limit, status), factors, ~back & rebuild,
             jnp.where(back | reject, c.previous, full), c.rebuilt | (~back & rebuild),
             weighted_norm(model, r), jnp.where(back, c.base_mu + half * c.step_mu, mu_new),
@@ -320,7 +334,7 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
             jnp.where(back | ~trial, c.base_merit, now_merit),
             jnp.where(back | ~trial, c.step, w_new - c.w),
             jnp.where(back | ~trial, c.step_mu, mu_new - c.mu),
-            jnp.where(back, half, jnp.where(trial, 1.0, 0.0)), halvings)
+            jnp.where(back, half, jnp.where(trial, 1.0, 0.0)), halvings, trials)
 
     stale = memory.renew | (jnp.abs(memory.h - h) > 1e-9 * h)
     # drives that turn by pi/2 or more in the step: off the branch before any iteration
@@ -330,7 +344,8 @@ def newton_step(model, inert, settings, state, h, memory: NewtonMemory) -> StepR
                         jnp.array(jnp.inf), jnp.array(False), jnp.array(jnp.inf),
                         memory.multipliers, jnp.array(0.0), tracked if contact else None,
                         w0, memory.multipliers, jnp.array(jnp.inf), jnp.zeros_like(w0),
-                        jnp.zeros_like(memory.multipliers), jnp.array(0.0), jnp.array(0))
+                        jnp.zeros_like(memory.multipliers), jnp.array(0.0), jnp.array(0),
+                        stick_slip.trials(functions.loaded, *frames(w0)) if damped else None)
     c = iterate(body, init)
     memory = memory._replace(
         factors=c.factors, h=jnp.asarray(h, jnp.float64),
