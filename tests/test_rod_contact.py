@@ -251,6 +251,21 @@ def test_broad_phase_finds_the_folded_contacts_and_excludes_neighbours():
     assert touching(0, 1) and touching(0, 2)
 
 
+def hairpin_model(elements, h, clamped):
+    """A unit-stiffness rod of ``elements`` elements of length ``h`` with self-contact
+    (radius 0.75 h, 32 pairs, 2 contact points), node 0 clamped or free."""
+    return build_model(Scene.from_dict({
+        "solver": {"kind": "static"},
+        "rods": [{"name": "hairpin", "elements": elements,
+                  "geometry": {"kind": "straight", "length": elements * h},
+                  "stiffness": {"EA": 1.0, "GAy": 1.0, "GAz": 1.0, "GJ": 1.0, "EIy": 1.0,
+                                "EIz": 1.0},
+                  "inertia": {"rhoA": 1.0, "rhoJ": 1.0, "rhoIy": 1.0, "rhoIz": 1.0}}],
+        "constraints": [{"kind": "clamp", "rod": "hairpin", "node": 0}] if clamped else [],
+        "contact": {"radius": 0.75 * h, "self": True, "max_pairs": 32,
+                    "quadrature_points": 2}}))
+
+
 def test_tracked_pairs_hold_every_pair_within_their_motion():
     """Pairs found once with a motion allowance (the dynamics' broad phase, once per
     step) against pairs found afresh: the hairpin's upper leg lifted by one element
@@ -261,16 +276,7 @@ def test_tracked_pairs_hold_every_pair_within_their_motion():
     n_leg, h = 6, 0.01
     R, p = _hairpin(n_leg, h)
     E = len(p) - 1
-    model = build_model(Scene.from_dict({
-        "solver": {"kind": "static"},
-        "rods": [{"name": "hairpin", "elements": E,
-                  "geometry": {"kind": "straight", "length": E * h},
-                  "stiffness": {"EA": 1.0, "GAy": 1.0, "GAz": 1.0, "GJ": 1.0, "EIy": 1.0,
-                                "EIz": 1.0},
-                  "inertia": {"rhoA": 1.0, "rhoJ": 1.0, "rhoIy": 1.0, "rhoIz": 1.0}}],
-        "constraints": [{"kind": "clamp", "rod": "hairpin", "node": 0}],
-        "contact": {"radius": 0.75 * h, "self": True, "max_pairs": 32,
-                    "quadrature_points": 2}}))
+    model = hairpin_model(E, h, clamped=True)
     upper = p[:, 2] > 0.75 * h                                # the upper leg's nodes
     R, lifted = jnp.asarray(R), jnp.asarray(p + np.outer(upper, [0.0, 0.0, h]))
 
@@ -397,15 +403,7 @@ def test_pair_tangents_with_few_touching_among_many_candidates_equal_forward_mod
     n_leg, h = 8, 0.01
     R, p = _hairpin(n_leg, h)
     E = len(p) - 1
-    model = build_model(Scene.from_dict({
-        "solver": {"kind": "static"},
-        "rods": [{"name": "hairpin", "elements": E,
-                  "geometry": {"kind": "straight", "length": E * h},
-                  "stiffness": {"EA": 1.0, "GAy": 1.0, "GAz": 1.0, "GJ": 1.0, "EIy": 1.0,
-                                "EIz": 1.0},
-                  "inertia": {"rhoA": 1.0, "rhoJ": 1.0, "rhoIy": 1.0, "rhoIz": 1.0}}],
-        "contact": {"radius": 0.75 * h, "self": True, "max_pairs": 32,
-                    "quadrature_points": 2}}))
+    model = hairpin_model(E, h, clamped=False)
     n = len(p)
     radius, stiffness, length = (jnp.asarray(a) for a in (
         model.contact_radius, model.contact_stiffness, model.length))
