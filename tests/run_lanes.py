@@ -3,7 +3,7 @@
     python tests/run_lanes.py [extra pytest arguments]
 
 Lane 1 runs the tests not marked ``slow``, lane 2 the ``slow`` ones (example and notebook
-runs, long rollouts): 22.7 and 21.5 min (a fresh clone) for the 1397 other and 121 slow tests on a
+runs, long rollouts): 22.4 and 21.6 min (a fresh clone) for the 1402 other and 120 slow tests on a
 2-core AMD EPYC VM with the test compile flags of ``tests/conftest.py``. Each lane's
 output goes to a log file and is printed whole when the lane ends (never interleaved),
 with its 25 slowest tests;
