@@ -15,11 +15,11 @@ each part pays the module's set-up again, and the solver programs' compile CPU t
 falls 10-17 % (static solver 3.1 -> 2.8 s, rollout 4.4 -> 4.0 s, rollout gradient
 5.2 -> 4.4 s; wall time lower too on 2 cores), run times unchanged (benchmarks/README.md,
 "`first_answer`"). It compiles no YNNPACK library fusions
-(``xla_cpu_experimental_ynn_fusion_type`` empty): by default XLA hands some dot products
-and reductions to that library, whose calls cost more than the small products here
-(cosseratbench pile: 4.8 -> 4.1 ms of CPU per Newton iteration, the timed run 19.4-20.8
--> 16.8 s; Princeton static, helical rollouts and a vmapped Princeton sweep equal or up
-to 15 % faster; benchmarks/README.md, "XLA's library fusions"). These are CPU debug
+(``xla_cpu_experimental_ynn_fusion_type`` empty): by default XLA hands dot products
+to that library, whose calls cost more than the small products here (cosseratbench
+pile: 4.8 -> 3.9-4.1 ms of CPU per Newton iteration; Princeton static 0.61-0.87, helical
+rollouts 0.98 and a vmapped Princeton sweep 0.78 of the CPU time with them;
+benchmarks/README.md, "`library_fusions`"). These are CPU debug
 options (ignored by other backends); those the installed jaxlib does not know are left
 out (with none known, plain ``jax.jit`` is used).
 

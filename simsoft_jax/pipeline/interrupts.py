@@ -4,7 +4,7 @@ Python turns SIGINT into a ``KeyboardInterrupt`` raised in whatever Python code 
 thread runs next. When that code is a garbage-collector callback (JAX registers one that
 runs during its compiles) or an object's finalizer (``__del__``), Python prints
 "Exception ignored in ..." and drops the exception: the command goes on compiling and
-solving as if Ctrl-C had not been pressed (seen about once in eight Ctrl-C's sent while
+solving as if Ctrl-C had not been pressed (seen in 2 of 15 Ctrl-C's sent while
 the static solver compiles). :func:`install` replaces Python's handler by one that raises
 as Python does, except inside such a callback, where it sends the signal again a moment
 later, once the callback has returned.
